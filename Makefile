@@ -1,0 +1,42 @@
+# printapp: `make demo` runs the default design end to end, `make test` runs the tests.
+# Both create .venv and install the project (with its dev extra) when needed, and try to
+# install Debian's libllvm19 so that Mitsuba's fast llvm_ad_rgb variant works.
+
+PYTHON ?= python3
+VENV ?= .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.printapp-installed
+
+.PHONY: demo test lint format bench llvm clean
+
+demo: $(STAMP) llvm
+	$(BIN)/printapp demo
+
+test: $(STAMP) llvm
+	$(BIN)/python -m pytest -q
+
+lint: $(STAMP)
+	$(BIN)/ruff check .
+	$(BIN)/ruff format --check .
+
+format: $(STAMP)
+	$(BIN)/ruff format .
+	$(BIN)/ruff check --fix .
+
+bench: $(STAMP) llvm
+	$(BIN)/printapp bench -o bench-out
+
+llvm:
+	@sh scripts/install-llvm.sh
+
+$(BIN)/python:
+	@sh scripts/make-venv.sh "$(PYTHON)" "$(VENV)"
+
+$(STAMP): pyproject.toml | $(BIN)/python
+	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet -e ".[dev]"
+	@touch $(STAMP)
+
+clean:
+	rm -rf $(VENV) printapp-demo bench-out build *.egg-info .pytest_cache
+	find . -name __pycache__ -type d -prune -exec rm -rf {} +

@@ -1,0 +1,5 @@
+"""``python -m printapp`` runs the command line."""
+
+from printapp.cli import main
+
+main()

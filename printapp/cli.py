@@ -1,0 +1,163 @@
+"""The ``printapp`` command line: a thin shell over functions that tests call directly.
+
+Heavy libraries (numba kernels, trimesh, Mitsuba, matplotlib) are imported inside
+the commands that need them, so ``printapp --help`` starts fast.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from rich.console import Console
+
+from printapp.errors import PrintappError
+
+app = typer.Typer(
+    name="printapp",
+    help="Appearance printing: textures to watertight resin prints, verified by path tracing.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+_err = Console(stderr=True, highlight=False, soft_wrap=True)
+_out = Console(highlight=False, soft_wrap=True)
+if not _out.is_terminal:
+    _out.width = 160  # piped output: do not squeeze tables to 80 columns
+
+QuietOption = Annotated[
+    bool, typer.Option("--quiet", "-q", help="No progress bars, only the summary and errors.")
+]
+ForceOption = Annotated[
+    bool, typer.Option("--force", help="Write the model even when the design fails verification.")
+]
+
+
+def _fail(exc: PrintappError) -> typer.Exit:
+    _err.print(f"[bold red]error:[/] {exc}", markup=True, highlight=False)
+    return typer.Exit(exc.exit_code)
+
+
+def _version_callback(value: bool) -> None:
+    if value:
+        from importlib.metadata import version
+
+        _out.print(f"printapp {version('printapp')}")
+        raise typer.Exit(0)
+
+
+@app.callback()
+def _root(
+    version: Annotated[
+        bool, typer.Option("--version", callback=_version_callback, is_eager=True, help="Show the version.")
+    ] = False,
+) -> None:
+    """Appearance printing: textures to watertight resin prints, verified by path tracing."""
+
+
+def _run(design_path: Path | None, out_dir: Path, force: bool, quiet: bool) -> None:
+    from printapp.design import load_design
+    from printapp.pipeline import load_default_design, run_design
+
+    try:
+        if design_path is None:
+            design, source = load_default_design(), "built-in default design"
+        else:
+            design, source = load_design(design_path), str(design_path)
+        outcome = run_design(design, out_dir, source=source, force=force, quiet=quiet)
+    except PrintappError as exc:
+        raise _fail(exc) from None
+    if outcome.render_warning:
+        _err.print(f"warning: {outcome.render_warning}")
+    m = outcome.manifest
+    _out.print(
+        f"{design.name}: {m['triangles']:,} triangles, watertight={m['watertight']}, "
+        f"volume {m['volume_mm3']:.1f} mm^3, {m['printer']['layers']} layers on {m['printer']['name']}"
+    )
+    a = m["appearance"]
+    _out.print(
+        f"predicted appearance: roughness {a['roughness']}, anisotropy {a['anisotropy']}, "
+        f"highlight along {a['highlight_azimuth_deg']} deg"
+    )
+    for path in outcome.written:
+        _out.print(f"  wrote {path}")
+    if not outcome.passed:
+        for reason in outcome.reasons:
+            _err.print(f"[bold red]verification failed:[/] {reason}", markup=True)
+        if not force:
+            _err.print("no model written; rerun with --force to write it anyway")
+        raise typer.Exit(3)
+
+
+@app.command()
+def demo(
+    out: Annotated[Path, typer.Option("--out", "-o", help="Output folder.")] = Path("printapp-demo"),
+    force: ForceOption = False,
+    quiet: QuietOption = False,
+) -> None:
+    """Run the built-in default design end to end (no arguments needed)."""
+    _run(None, out, force, quiet)
+
+
+@app.command()
+def design(
+    design_file: Annotated[Path, typer.Argument(help="Design file (TOML); see examples/.")],
+    out: Annotated[
+        Path | None, typer.Option("--out", "-o", help="Output folder [default: NAME-out].")
+    ] = None,
+    force: ForceOption = False,
+    quiet: QuietOption = False,
+) -> None:
+    """Build a design: model.stl, model.3mf, preview.png, design.resolved.toml, manifest.json."""
+    _run(design_file, out if out is not None else Path(f"{design_file.stem}-out"), force, quiet)
+
+
+@app.command()
+def printers() -> None:
+    """List the printer profiles a design can name."""
+    from rich.table import Table
+
+    from slicing import PRINTERS
+
+    table = Table("name", "printer", "display (px)", "area (mm)", "pitch (um)", "layer (mm)")
+    for name, p in sorted(PRINTERS.items()):
+        table.add_row(
+            name,
+            p.label,
+            f"{p.display_pixels_x} x {p.display_pixels_y}",
+            f"{p.display_width_mm:g} x {p.display_height_mm:g}",
+            f"{p.pitch_mm * 1000:.2f}",
+            f"{p.layer_height_mm:g} ({p.min_layer_height_mm:g}-{p.max_layer_height_mm:g})",
+        )
+    _out.print(table)
+
+
+@app.command()
+def bench(
+    stages: Annotated[list[str] | None, typer.Argument(help="Stages to run [default: all].")] = None,
+    out: Annotated[Path, typer.Option("--out", "-o", help="Folder for bench.json and charts.")] = Path(
+        "bench-out"
+    ),
+    repeats: Annotated[int, typer.Option(min=1, max=100, help="Timed repeats per setting (median).")] = 5,
+) -> None:
+    """Measure speed against accuracy; print a table, write JSON and PNG charts."""
+    from printapp.bench import STAGES, run_bench
+
+    try:
+        names = list(stages) if stages else list(STAGES)
+        results = run_bench(names, out, repeats=repeats, console=_out)
+    except PrintappError as exc:
+        raise _fail(exc) from None
+    for path in results:
+        _out.print(f"  wrote {path}")
+
+
+def main() -> None:
+    """Console-script entry point."""
+    try:
+        app()
+    except KeyboardInterrupt:
+        _err.print("interrupted; no partial outputs were left")
+        sys.exit(130)

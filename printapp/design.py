@@ -1,0 +1,509 @@
+"""The design file: TOML, validated by pydantic at the boundary, in internal units.
+
+Inside printapp every length is in millimetres and every angle in radians. A design
+file may give a length in micrometres (``amplitude_um = 300``) or an angle in degrees
+(``angle_deg = 30``); such keys are converted once, here, to the ``_mm`` / ``_rad``
+field that the model declares. ``design.resolved.toml`` is written back in mm and
+degrees with every default filled in, and loads to the same design.
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+import tomllib
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+import annotated_types as at
+import tomli_w
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+
+from printapp.errors import DesignError
+from slicing import PRINTERS, PrinterProfile
+
+# Unit suffixes a file may use, mapped to the internal field's suffix and the factor
+# that converts to it.
+_UNIT_ALIASES: dict[str, tuple[str, float]] = {
+    "_um": ("_mm", 1e-3),
+    "_cm": ("_mm", 10.0),
+    "_deg": ("_rad", math.pi / 180.0),
+}
+_MAX_GRID_SIDE = 4096
+
+
+class _Section(BaseModel):
+    """Base for every table of the design file: strict types, no unknown keys, finite floats."""
+
+    model_config = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False, frozen=True)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _convert_units(cls, data: Any) -> Any:
+        if not isinstance(data, dict):
+            return data
+        out: dict[str, Any] = {}
+        for key, value in data.items():
+            target = key
+            for suffix, (internal, factor) in _UNIT_ALIASES.items():
+                stem = key[: -len(suffix)] if isinstance(key, str) and key.endswith(suffix) else None
+                if stem is not None and stem + internal in cls.model_fields:
+                    target = stem + internal
+                    if target in data:
+                        raise ValueError(f"give either '{key}' or '{target}', not both")
+                    if isinstance(value, (int, float)) and not isinstance(value, bool):
+                        value = float(value) * factor
+                    break
+            out[target] = value
+        return out
+
+
+PositiveMM = Annotated[float, at.Gt(0.0)]
+
+
+class TileBase(_Section):
+    """A rectangular slab: the relief is on top, sides and bottom are flat."""
+
+    shape: Literal["tile"] = "tile"
+    width_mm: Annotated[float, at.Gt(0.0), at.Le(1000.0)] = 20.0
+    depth_mm: Annotated[float, at.Gt(0.0), at.Le(1000.0)] = 20.0
+    thickness_mm: Annotated[float, at.Gt(0.0), at.Le(500.0)] = 2.0
+
+
+class MeshBase(_Section):
+    """A closed input mesh whose surface receives the relief along its normals."""
+
+    shape: Literal["mesh"] = "mesh"
+    path: str = Field(min_length=1)
+    scale: Annotated[float, at.Gt(0.0), at.Le(1e6)] = 1.0
+    """Millimetres per unit of the mesh file (25.4 for a model in inches)."""
+
+
+class Texture(_Section):
+    """The texture field: which noise, at which scale, with which seed."""
+
+    kind: Literal["scn", "fbm", "turbulence"] = "fbm"
+    feature_size_mm: Annotated[float, at.Gt(0.0), at.Le(1000.0)] = 2.0
+    """Size of one noise lattice cell (mm): the base octave's features are about this big."""
+    seed: Annotated[int, at.Ge(0), at.Lt(2**63)] = 0
+    impulses: Annotated[int, at.Ge(1), at.Le(256)] = 30
+    cell_seed: Literal["hash", "frisvad"] = "hash"
+    octaves: Annotated[int, at.Ge(1), at.Le(16)] = 4
+    lacunarity: Annotated[float, at.Gt(1.0), at.Le(8.0)] = 2.0
+    H: Annotated[float, at.Gt(0.0), at.Le(1.0)] = 1.0
+    low: Annotated[int, at.Ge(0), at.Le(16)] = 0
+    high: Annotated[int, at.Ge(0), at.Le(16)] = 4
+    stretch: Annotated[float, at.Ge(1.0), at.Le(100.0)] = 1.0
+    """Elongation of the features along ``angle``: 1 is isotropic, 8 looks brushed."""
+    angle_rad: Annotated[float, at.Ge(-2 * math.pi), at.Le(2 * math.pi)] = 0.0
+    """Direction of elongation in the xy plane, from +x towards +y."""
+
+    @model_validator(mode="after")
+    def _octave_range(self) -> Texture:
+        if self.high < self.low:
+            raise ValueError(f"'high' ({self.high}) must be at least 'low' ({self.low})")
+        return self
+
+
+class Relief(_Section):
+    """How high the texture stands and how finely it is sampled."""
+
+    amplitude_mm: Annotated[float, at.Gt(0.0), at.Le(50.0)] = 0.3
+    """Peak-to-valley height of the relief (mm): the texture is scaled to span exactly this."""
+    pitch_mm: Annotated[float, at.Gt(0.0), at.Le(10.0)] | None = None
+    """Sampling pitch of the height field (mm); default: the printer's pixel pitch."""
+
+
+class Printer(_Section):
+    """Which printer, and optionally which layer height."""
+
+    name: str = "prusa-sl1"
+    layer_height_mm: Annotated[float, at.Gt(0.0), at.Le(1.0)] | None = None
+
+    @field_validator("name")
+    @classmethod
+    def _known_printer(cls, name: str) -> str:
+        if name not in PRINTERS:
+            close = difflib.get_close_matches(name, PRINTERS, n=1)
+            hint = f"; did you mean '{close[0]}'?" if close else ""
+            raise ValueError(f"unknown printer '{name}', expected one of {', '.join(sorted(PRINTERS))}{hint}")
+        return name
+
+    @property
+    def profile(self) -> PrinterProfile:
+        return PRINTERS[self.name]
+
+    @model_validator(mode="after")
+    def _layer_in_range(self) -> Printer:
+        lh = self.layer_height_mm
+        prof = PRINTERS[self.name]
+        if lh is not None and not prof.min_layer_height_mm <= lh <= prof.max_layer_height_mm:
+            raise ValueError(
+                f"layer_height_mm {lh:g} is outside what {prof.label} can print "
+                f"([{prof.min_layer_height_mm:g}, {prof.max_layer_height_mm:g}] mm)"
+            )
+        return self
+
+
+Unit = Annotated[float, at.Ge(0.0), at.Le(1.0)]
+
+
+class Material(_Section):
+    """The resin: its refractive index and the colour its pigments give the body."""
+
+    refractive_index: Annotated[float, at.Ge(1.0), at.Le(3.0)] = 1.5
+    body_albedo: tuple[Unit, Unit, Unit] = Field(default=(0.8, 0.8, 0.8), strict=False)
+    """Linear-RGB albedo of light that enters the resin and comes back out diffusely."""
+
+
+RangeBound = Annotated[float, at.Ge(0.0), at.Le(1000.0)]
+
+
+def _check_range(name: str, pair: tuple[float, float] | None) -> None:
+    if pair is not None and pair[0] > pair[1]:
+        raise ValueError(f"'{name}' must be [min, max] with min <= max, got [{pair[0]:g}, {pair[1]:g}]")
+
+
+class Appearance(_Section):
+    """Optional targets the design must meet, each as ``[min, max]``.
+
+    ``roughness`` is the Beckmann roughness of the relief's slopes (the root mean
+    square slope times sqrt 2, geometric mean of the two principal directions);
+    ``anisotropy`` is the ratio of the larger to the smaller principal roughness.
+    """
+
+    roughness: tuple[RangeBound, RangeBound] | None = Field(default=None, strict=False)
+    anisotropy: tuple[Annotated[float, at.Ge(1.0)], Annotated[float, at.Ge(1.0)]] | None = Field(
+        default=None, strict=False
+    )
+
+    @model_validator(mode="after")
+    def _ordered(self) -> Appearance:
+        _check_range("roughness", self.roughness)
+        _check_range("anisotropy", self.anisotropy)
+        return self
+
+
+class Render(_Section):
+    """The verification preview."""
+
+    width_px: Annotated[int, at.Ge(16), at.Le(4096)] = 480
+    height_px: Annotated[int, at.Ge(16), at.Le(4096)] = 360
+    spp: Annotated[int, at.Ge(1), at.Le(65536)] = 32
+    elevation_rad: Annotated[float, at.Gt(0.0), at.Lt(math.pi / 2)] = math.radians(40.0)
+    azimuth_rad: Annotated[float, at.Ge(-2 * math.pi), at.Le(2 * math.pi)] = math.radians(-60.0)
+
+
+class Design(_Section):
+    """A whole design: base shape, texture, relief, printer, material, targets, preview."""
+
+    name: str = Field(default="untitled", min_length=1, max_length=200)
+    base: Annotated[TileBase | MeshBase, Field(discriminator="shape")] = TileBase()
+    texture: Texture = Texture()
+    relief: Relief = Relief()
+    printer: Printer = Printer()
+    material: Material = Material()
+    appearance: Appearance = Appearance()
+    render: Render = Render()
+
+    @model_validator(mode="before")
+    @classmethod
+    def _default_base_shape(cls, data: Any) -> Any:
+        # A [base] table without 'shape' is a tile unless it names a mesh path.
+        if isinstance(data, dict) and isinstance(data.get("base"), dict) and "shape" not in data["base"]:
+            base = dict(data["base"])
+            base["shape"] = "mesh" if "path" in base else "tile"
+            data = {**data, "base": base}
+        return data
+
+    @property
+    def pitch_mm(self) -> float:
+        """Sampling pitch of the relief (mm): the design's, else the printer's pixel pitch."""
+        return self.relief.pitch_mm if self.relief.pitch_mm is not None else self.printer.profile.pitch_mm
+
+    @property
+    def layer_height_mm(self) -> float:
+        """Layer height (mm): the design's, else the printer profile's."""
+        lh = self.printer.layer_height_mm
+        return lh if lh is not None else self.printer.profile.layer_height_mm
+
+    @model_validator(mode="after")
+    def _grid_size(self) -> Design:
+        if isinstance(self.base, TileBase):
+            pitch = self.pitch_mm
+            side = max(self.base.width_mm, self.base.depth_mm) / pitch
+            if side > _MAX_GRID_SIDE:
+                raise ValueError(
+                    f"relief.pitch_mm {pitch:g} gives {side:.0f} samples along a "
+                    f"{max(self.base.width_mm, self.base.depth_mm):g} mm side; "
+                    f"expected at most {_MAX_GRID_SIDE}"
+                )
+        return self
+
+
+# ---------------------------------------------------------------------------------------------
+# Loading, with one clear sentence per problem
+
+
+def _field_info(model: type[BaseModel], loc: tuple[Any, ...]) -> tuple[type[BaseModel] | None, str | None]:
+    """Walk ``loc`` through nested models; return the innermost model and field name."""
+    current: type[BaseModel] | None = model
+    field: str | None = None
+    for part in loc:
+        if current is None or not isinstance(part, str):
+            continue
+        if part in ("tile", "mesh") and field == "base":
+            current = TileBase if part == "tile" else MeshBase
+            continue
+        if part not in current.model_fields:
+            return current, None
+        field = part
+        annotation = current.model_fields[part].annotation
+        nested = [a for a in getattr(annotation, "__args__", (annotation,)) if isinstance(a, type)]
+        current = next((a for a in nested if issubclass(a, BaseModel)), None)
+        if part == "base":
+            current = None
+    return current, field
+
+
+def _describe_range(model: type[BaseModel], name: str) -> str | None:
+    info = model.model_fields.get(name)
+    if info is None:
+        return None
+    bounds: dict[str, float] = {}
+    for meta in info.metadata:
+        for attr in ("gt", "ge", "lt", "le"):
+            if hasattr(meta, attr):
+                bounds[attr] = getattr(meta, attr)
+    annotation = info.annotation
+    for arg in getattr(annotation, "__args__", ()):
+        for meta in getattr(arg, "__metadata__", ()):
+            for attr in ("gt", "ge", "lt", "le"):
+                if hasattr(meta, attr):
+                    bounds[attr] = getattr(meta, attr)
+    if not bounds:
+        return None
+    lo = (
+        "(" + f"{bounds['gt']:g}"
+        if "gt" in bounds
+        else "[" + f"{bounds['ge']:g}"
+        if "ge" in bounds
+        else "(-inf"
+    )
+    hi = (
+        f"{bounds['lt']:g}" + ")"
+        if "lt" in bounds
+        else f"{bounds['le']:g}" + "]"
+        if "le" in bounds
+        else "inf)"
+    )
+    return f"{lo}, {hi}"
+
+
+def _parent_model(loc: tuple[Any, ...]) -> type[BaseModel]:
+    model, _ = _field_info(Design, loc[:-1]) if loc else (Design, None)
+    return model if model is not None else Design
+
+
+def _key_names(model: type[BaseModel]) -> list[str]:
+    names = list(model.model_fields)
+    for name in list(names):
+        for suffix, (internal, _) in _UNIT_ALIASES.items():
+            if name.endswith(internal):
+                names.append(name[: -len(internal)] + suffix)
+    return names
+
+
+def _dotted(loc: tuple[Any, ...]) -> str:
+    parts = []
+    for part in loc:
+        if part in ("tile", "mesh") and parts and parts[-1] == "base":
+            continue
+        if isinstance(part, int):
+            parts[-1] = f"{parts[-1]}[{part}]" if parts else f"[{part}]"
+        else:
+            parts.append(str(part))
+    return ".".join(parts) or "(top level)"
+
+
+def _short(value: Any) -> str:
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def _alias_used(raw: Any, loc: tuple[Any, ...]) -> tuple[str, float, Any] | None:
+    """If the file gave ``loc``'s field under a unit alias, return (alias key, factor, raw value)."""
+    node = raw
+    for part in loc[:-1]:
+        if part in ("tile", "mesh"):
+            continue
+        if not isinstance(node, dict) or part not in node:
+            return None
+        node = node[part]
+    name = loc[-1] if loc else None
+    if not isinstance(node, dict) or not isinstance(name, str) or name in node:
+        return None
+    for suffix, (internal, factor) in _UNIT_ALIASES.items():
+        if name.endswith(internal):
+            alias = name[: -len(internal)] + suffix
+            if alias in node:
+                return alias, factor, node[alias]
+    return None
+
+
+def _explain(error: dict[str, Any], source: str, raw: Any = None) -> str:
+    loc = tuple(error["loc"])
+    where = _dotted(loc)
+    kind = error["type"]
+    alias = _alias_used(raw, loc)
+    if kind == "extra_forbidden":
+        parent = _parent_model(loc)
+        key = str(loc[-1])
+        close = difflib.get_close_matches(key, _key_names(parent), n=1, cutoff=0.5)
+        hint = (
+            f"; did you mean '{close[0]}'?" if close else f"; valid keys are {', '.join(_key_names(parent))}"
+        )
+        return f"{source}: unknown key '{where}'{hint}"
+    if kind == "missing":
+        return f"{source}: {where}: this key is required"
+    if kind in ("union_tag_invalid", "union_tag_not_found"):
+        return f'{source}: {where}: expected shape = "tile" or "mesh"'
+    value = _short(error.get("input"))
+    if kind == "value_error":
+        msg = str(error.get("ctx", {}).get("error", error["msg"]))
+        return f"{source}: {where}: {msg}" if loc else f"{source}: {msg}"
+    _, name = _field_info(Design, loc)
+    parent = _parent_model(loc)
+    field_name = name if name is not None else str(loc[-1]) if loc else ""
+    if kind in ("greater_than", "greater_than_equal", "less_than", "less_than_equal"):
+        rng = _describe_range(parent, field_name) if loc and isinstance(loc[-1], str) else None
+        if rng is None:
+            ops = {"gt": ">", "ge": ">=", "lt": "<", "le": "<="}
+            bound = " and ".join(f"{ops[k]} {v:g}" for k, v in error.get("ctx", {}).items() if k in ops)
+            return f"{source}: {where}: expected a value {bound}, got {value}"
+        if alias is not None:
+            key, factor, original = alias
+            lo, hi = rng.split(", ")
+            lo = lo[0] + (f"{float(lo[1:]) / factor:g}" if lo[1:] not in ("-inf",) else lo[1:])
+            hi = (f"{float(hi[:-1]) / factor:g}" if hi[:-1] != "inf" else "inf") + hi[-1]
+            where = _dotted(loc[:-1] + (key,))
+            return f"{source}: {where}: expected a value in {lo}, {hi}, got {_short(original)}"
+        return f"{source}: {where}: expected a value in {rng}, got {value}"
+    if kind == "finite_number":
+        return f"{source}: {where}: expected a finite number, got {value}"
+    if kind == "literal_error":
+        expected = error.get("ctx", {}).get("expected", "")
+        return f"{source}: {where}: expected one of {expected}, got {value}"
+    if kind.endswith("_type") or kind.endswith("_parsing") or kind in ("too_short", "too_long"):
+        wanted = {
+            "float_type": "a number",
+            "int_type": "an integer",
+            "string_type": "a string",
+            "bool_type": "true or false",
+            "tuple_type": "an array",
+            "model_type": "a table",
+            "dict_type": "a table",
+            "model_attributes_type": "a table",
+            "int_from_float": "an integer",
+            "too_short": "a longer value"
+            if not isinstance(error.get("input"), (list, tuple))
+            else "more items",
+            "too_long": "a shorter value"
+            if not isinstance(error.get("input"), (list, tuple))
+            else "fewer items",
+        }.get(kind, error["msg"].lower().replace("input should be ", ""))
+        if kind in ("too_short", "too_long") and isinstance(error.get("input"), (list, tuple)):
+            n = error.get("ctx", {}).get("min_length", error.get("ctx", {}).get("max_length"))
+            if n is not None:
+                wanted = f"an array of {n}"
+        return f"{source}: {where}: expected {wanted}, got {value}"
+    msg = error["msg"][0].lower() + error["msg"][1:]
+    return f"{source}: {where}: {msg}, got {value}"
+
+
+def design_from_dict(data: Any, source: str = "design") -> Design:
+    """Validate a parsed TOML document into a :class:`Design`.
+
+    Raises
+    ------
+    DesignError
+        With one sentence naming ``source``, the key and what was expected.
+    """
+    if not isinstance(data, dict):
+        raise DesignError(f"{source}: expected a TOML table at the top level")
+    try:
+        return Design.model_validate(data)
+    except ValidationError as exc:
+        errors = exc.errors(include_url=False)
+        # An unknown key explains the rest of a table's errors best; report it first.
+        errors.sort(key=lambda e: (e["type"] != "extra_forbidden", len(e["loc"])))
+        raise DesignError(_explain(errors[0], source, data)) from None
+    except (TypeError, ValueError, OverflowError) as exc:
+        raise DesignError(f"{source}: {exc}") from None
+
+
+def load_design(path: str | Path) -> Design:
+    """Read and validate a design file.
+
+    Relative mesh paths in the file are resolved against the file's folder.
+
+    Raises
+    ------
+    DesignError
+        If the file is missing or unreadable, is not valid TOML (with the line), or
+        does not validate (with the key and what was expected).
+    """
+    path = Path(path)
+    try:
+        raw = path.read_bytes()
+    except FileNotFoundError:
+        raise DesignError(f"{path}: no such design file") from None
+    except IsADirectoryError:
+        raise DesignError(f"{path}: expected a design file (.toml), found a folder") from None
+    except OSError as exc:
+        raise DesignError(f"{path}: cannot read the design file ({exc.strerror})") from None
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError:
+        raise DesignError(f"{path}: expected a UTF-8 text TOML file") from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise DesignError(f"{path}: TOML syntax error: {exc}") from None
+    design = design_from_dict(data, str(path))
+    if isinstance(design.base, MeshBase):
+        mesh_path = Path(design.base.path)
+        if not mesh_path.is_absolute():
+            mesh_path = path.parent / mesh_path
+        design = design.model_copy(update={"base": design.base.model_copy(update={"path": str(mesh_path)})})
+    return design
+
+
+def _to_file_units(data: Any) -> Any:
+    if isinstance(data, dict):
+        out = {}
+        for key, value in data.items():
+            if value is None:
+                continue  # TOML has no null: an absent key means "use the default"
+            if key.endswith("_rad") and isinstance(value, float):
+                # 12 significant digits undo the radian round trip's last-bit noise.
+                out[key[:-4] + "_deg"] = float(f"{math.degrees(value):.12g}")
+            else:
+                out[key] = _to_file_units(value)
+        return out
+    if isinstance(data, (list, tuple)):
+        return [_to_file_units(v) for v in data]
+    return data
+
+
+def resolved_toml(design: Design) -> str:
+    """The design with every default filled in, as TOML in mm and degrees.
+
+    Loading the result gives back an equal :class:`Design`.
+    """
+    dumped = design.model_dump(mode="python")
+    dumped["relief"]["pitch_mm"] = design.pitch_mm
+    dumped["printer"]["layer_height_mm"] = design.layer_height_mm
+    data = _to_file_units(dumped)
+    header = "# printapp design, resolved: every default filled in. Lengths in mm, angles in degrees.\n"
+    return header + tomli_w.dumps(data)

@@ -1,0 +1,142 @@
+"""Writing outputs: binary STL, 3MF, and a staging folder that only ever shows whole files."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import tempfile
+import zipfile
+from pathlib import Path
+from types import TracebackType
+
+import numpy as np
+
+from printapp.errors import DesignError
+
+_STL_HEADER = b"printapp binary STL; units: mm".ljust(80, b" ")
+_ZIP_EPOCH = (1980, 1, 1, 0, 0, 0)
+
+
+def stl_bytes(vertices: np.ndarray, faces: np.ndarray) -> bytes:
+    """A binary STL of a triangle mesh (mm), with unit facet normals computed in float64.
+
+    The header is fixed, so the same mesh always gives the same bytes.
+    """
+    tri = np.asarray(vertices, dtype=np.float64)[np.asarray(faces)]
+    normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    norms = np.linalg.norm(normals, axis=1, keepdims=True)
+    normals = np.divide(normals, norms, out=np.zeros_like(normals), where=norms > 0)
+    record = np.dtype([("normal", "<f4", 3), ("vertices", "<f4", (3, 3)), ("attr", "<u2")])
+    data = np.zeros(len(tri), dtype=record)
+    data["normal"] = normals
+    data["vertices"] = tri
+    return _STL_HEADER + np.uint32(len(tri)).astype("<u4").tobytes() + data.tobytes()
+
+
+def threemf_bytes(vertices: np.ndarray, faces: np.ndarray, name: str = "printapp model") -> bytes:
+    """A 3MF package (3MF Core Specification 1.3) holding one mesh object in mm.
+
+    Zip entries carry a fixed timestamp and no random ids, so output is deterministic.
+    """
+    verts = np.asarray(vertices, dtype=np.float32)
+    tris = np.asarray(faces, dtype=np.int64)
+    # One %-format over the whole array is several times faster than a per-element f-string.
+    vertex_xml = ('<vertex x="%.9g" y="%.9g" z="%.9g"/>' * len(verts)) % tuple(verts.ravel().tolist())
+    triangle_xml = ('<triangle v1="%d" v2="%d" v3="%d"/>' * len(tris)) % tuple(tris.ravel().tolist())
+    safe_name = name.replace("&", "&amp;").replace('"', "&quot;").replace("<", "&lt;")
+    model = (
+        '<?xml version="1.0" encoding="UTF-8"?>\n'
+        '<model unit="millimeter" xml:lang="en-US" '
+        'xmlns="http://schemas.microsoft.com/3dmanufacturing/core/2015/02">'
+        '<metadata name="Application">printapp</metadata>'
+        f'<resources><object id="1" type="model" name="{safe_name}"><mesh>'
+        f"<vertices>{vertex_xml}</vertices><triangles>{triangle_xml}</triangles>"
+        '</mesh></object></resources><build><item objectid="1"/></build></model>'
+    )
+    content_types = (
+        '<?xml version="1.0" encoding="UTF-8"?>\n'
+        '<Types xmlns="http://schemas.openxmlformats.org/package/2006/content-types">'
+        '<Default Extension="rels" ContentType="application/vnd.openxmlformats-package.relationships+xml"/>'
+        '<Default Extension="model" ContentType="application/vnd.ms-package.3dmanufacturing-3dmodel+xml"/>'
+        "</Types>"
+    )
+    rels = (
+        '<?xml version="1.0" encoding="UTF-8"?>\n'
+        '<Relationships xmlns="http://schemas.openxmlformats.org/package/2006/relationships">'
+        '<Relationship Target="/3D/3dmodel.model" Id="rel0" '
+        'Type="http://schemas.microsoft.com/3dmanufacturing/2013/01/3dmodel"/>'
+        "</Relationships>"
+    )
+    import io
+
+    buffer = io.BytesIO()
+    with zipfile.ZipFile(buffer, "w") as archive:
+        for entry, text in (
+            ("[Content_Types].xml", content_types),
+            ("_rels/.rels", rels),
+            ("3D/3dmodel.model", model),
+        ):
+            info = zipfile.ZipInfo(entry, date_time=_ZIP_EPOCH)
+            info.compress_type = zipfile.ZIP_DEFLATED
+            archive.writestr(info, text.encode("utf-8"), compresslevel=6)
+    return buffer.getvalue()
+
+
+class OutputFolder:
+    """Stage outputs in a hidden folder beside their destination; move them in on success.
+
+    Each file appears under its final name only by ``os.replace`` (atomic on one
+    file system), so an interrupted run leaves no half-written output; the staging
+    folder is removed whatever happens.
+
+    Raises
+    ------
+    DesignError
+        On entering, if the destination cannot be created or written.
+    """
+
+    def __init__(self, destination: str | Path) -> None:
+        self.destination = Path(destination)
+        self._staging: Path | None = None
+        self._files: list[str] = []
+
+    def __enter__(self) -> OutputFolder:
+        try:
+            if self.destination.exists() and not self.destination.is_dir():
+                raise DesignError(f"{self.destination}: output folder is a file, expected a folder")
+            self.destination.mkdir(parents=True, exist_ok=True)
+            self._staging = Path(tempfile.mkdtemp(prefix=".printapp-partial-", dir=self.destination))
+        except OSError as exc:
+            raise DesignError(
+                f"{self.destination}: output folder is not writable ({exc.strerror or exc})"
+            ) from None
+        return self
+
+    def path(self, name: str) -> Path:
+        """Where to write ``name`` while staging."""
+        assert self._staging is not None, "use OutputFolder as a context manager"
+        if name not in self._files:
+            self._files.append(name)
+        return self._staging / name
+
+    def write_bytes(self, name: str, data: bytes) -> None:
+        self.path(name).write_bytes(data)
+
+    def write_text(self, name: str, text: str) -> None:
+        self.path(name).write_text(text, encoding="utf-8")
+
+    def commit(self, names: list[str] | None = None) -> list[Path]:
+        """Move the staged files (all, or ``names``) to the destination; return their final paths."""
+        assert self._staging is not None
+        moved = []
+        for name in names if names is not None else list(self._files):
+            final = self.destination / name
+            os.replace(self._staging / name, final)
+            moved.append(final)
+        return moved
+
+    def __exit__(
+        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
+    ) -> None:
+        if self._staging is not None:
+            shutil.rmtree(self._staging, ignore_errors=True)

@@ -1,0 +1,207 @@
+"""Printable meshes: closed slabs from height fields, relief on closed meshes, solidity checks."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+from printapp.errors import DesignError
+from printapp.heightfield import HeightField
+
+MAX_TRIANGLES = 8_000_000
+
+
+def _boundary_ring(ny: int, nx: int) -> np.ndarray:
+    """Indices of the grid's border vertices, counter-clockwise seen from +z, starting at (0, 0)."""
+    bottom = np.arange(0, nx)  # row 0, left to right
+    right = np.arange(1, ny) * nx + (nx - 1)  # last column, upwards
+    top = (ny - 1) * nx + np.arange(nx - 2, -1, -1)  # last row, right to left
+    left = np.arange(ny - 2, 0, -1) * nx  # first column, downwards
+    return np.concatenate([bottom, right, top, left])
+
+
+def slab_from_heightfield(field: HeightField, base_thickness_mm: float) -> trimesh.Trimesh:
+    """A closed, outward-oriented slab whose top is the displaced height field.
+
+    The top is the height field triangulated two triangles per cell at
+    ``z = base_thickness_mm + h``; every border edge of the top is joined to the
+    ``z = 0`` plane by a vertical wall, and the bottom is a fan around its centre.
+    Each edge is therefore shared by exactly two triangles with opposite
+    directions: the mesh is watertight and consistently wound by construction.
+
+    Parameters
+    ----------
+    field : HeightField
+        Relief heights (mm), all >= 0 is not required but ``base_thickness_mm + h`` must stay > 0.
+    base_thickness_mm : float
+        Thickness under the relief's zero level (mm).
+
+    Returns
+    -------
+    trimesh.Trimesh
+        Built with ``process=False``; ``2(nx-1)(ny-1) + 3 L`` triangles for a border of ``L`` edges.
+    """
+    h = field.heights_mm
+    if base_thickness_mm <= 0 or float(h.min()) + base_thickness_mm <= 0:
+        raise ValueError("base_thickness_mm: the slab's top must stay above z = 0")
+    ny, nx = h.shape
+    xx, yy = field.grid_points()
+    top = np.column_stack([xx.ravel(), yy.ravel(), (h + base_thickness_mm).ravel()])
+
+    idx = np.arange(ny * nx).reshape(ny, nx)
+    v00 = idx[:-1, :-1].ravel()
+    v10 = idx[:-1, 1:].ravel()
+    v01 = idx[1:, :-1].ravel()
+    v11 = idx[1:, 1:].ravel()
+    top_faces = np.concatenate([np.column_stack([v00, v10, v11]), np.column_stack([v00, v11, v01])])
+
+    ring = _boundary_ring(ny, nx)
+    n_ring = ring.size
+    bottom_ring = top[ring].copy()
+    bottom_ring[:, 2] = 0.0
+    centre = np.array([[xx[0, 0] + field.width_mm / 2, yy[0, 0] + field.depth_mm / 2, 0.0]])
+    n_top = top.shape[0]
+    a = ring
+    b = np.roll(ring, -1)
+    a_low = n_top + np.arange(n_ring)
+    b_low = np.roll(a_low, -1)
+    c = n_top + n_ring
+    walls = np.concatenate([np.column_stack([a_low, b_low, b]), np.column_stack([a_low, b, a])])
+    floor = np.column_stack([np.full(n_ring, c), b_low, a_low])
+
+    vertices = np.concatenate([top, bottom_ring, centre])
+    faces = np.concatenate([top_faces, walls, floor]).astype(np.int64)
+    return trimesh.Trimesh(vertices=vertices, faces=faces, process=False)
+
+
+@dataclass(frozen=True)
+class SolidCheck:
+    """What a slicer will ask of a mesh: closed, consistently oriented, manifold, positive volume."""
+
+    watertight: bool
+    winding_consistent: bool
+    manifold: bool
+    manifold_status: str
+    volume_mm3: float
+    genus: int
+    triangles: int
+    bbox_min_mm: tuple[float, float, float]
+    bbox_max_mm: tuple[float, float, float]
+
+    @property
+    def ok(self) -> bool:
+        return self.watertight and self.winding_consistent and self.manifold and self.volume_mm3 > 0
+
+    @property
+    def size_mm(self) -> tuple[float, float, float]:
+        return tuple(float(b - a) for a, b in zip(self.bbox_min_mm, self.bbox_max_mm, strict=True))  # type: ignore[return-value]
+
+
+def check_solid(mesh: trimesh.Trimesh) -> SolidCheck:
+    """Check a mesh with two independent tools: trimesh's edge topology and manifold3d."""
+    import manifold3d
+
+    m = manifold3d.Manifold(
+        manifold3d.Mesh(
+            vert_properties=np.asarray(mesh.vertices, dtype=np.float32),
+            tri_verts=np.asarray(mesh.faces, dtype=np.uint32),
+        )
+    )
+    status = m.status()
+    status_name = getattr(status, "name", str(status))
+    manifold_ok = status_name.endswith("NoError")
+    euler = int(mesh.euler_number)
+    lo, hi = mesh.bounds
+    return SolidCheck(
+        watertight=bool(mesh.is_watertight),
+        winding_consistent=bool(mesh.is_winding_consistent),
+        manifold=manifold_ok,
+        manifold_status=status_name.split(".")[-1],
+        volume_mm3=float(mesh.volume),
+        genus=(2 - euler) // 2,
+        triangles=int(len(mesh.faces)),
+        bbox_min_mm=tuple(float(v) for v in lo),  # type: ignore[arg-type]
+        bbox_max_mm=tuple(float(v) for v in hi),  # type: ignore[arg-type]
+    )
+
+
+def load_closed_mesh(path: str | Path, scale: float = 1.0) -> trimesh.Trimesh:
+    """Read a mesh file, merge duplicate vertices, scale it to mm, and insist that it is closed.
+
+    Raises
+    ------
+    DesignError
+        If the file is missing, unreadable, empty, or not a closed surface.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise DesignError(f"{path}: no such mesh file")
+    try:
+        loaded = trimesh.load(path, force="mesh", process=True)
+    except Exception as exc:  # trimesh raises many kinds for malformed files
+        raise DesignError(f"{path}: cannot read the mesh ({type(exc).__name__}: {exc})") from None
+    if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
+        raise DesignError(f"{path}: expected a triangle mesh, found no triangles")
+    mesh = trimesh.Trimesh(vertices=loaded.vertices * scale, faces=loaded.faces, process=False)
+    if not mesh.is_watertight:
+        open_edges = int(np.sum(trimesh.grouping.group_rows(mesh.edges_sorted, require_count=1).shape[0]))
+        raise DesignError(
+            f"{path}: expected a closed (watertight) mesh, found {open_edges} open edges; repair it first"
+        )
+    if not mesh.is_winding_consistent:
+        raise DesignError(f"{path}: expected consistently oriented triangles, found flipped ones")
+    if mesh.volume < 0:
+        mesh.invert()
+    return mesh
+
+
+def angle_weighted_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Unit vertex pseudo-normals, each face normal weighted by the face's angle at the vertex.
+
+    Thürmer & Wüthrich (1998); Bærentzen & Aanæs (2005) show these are the normals
+    for which inside/outside tests on a closed mesh are consistent.
+    """
+    tri = vertices[faces]
+    face_n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    face_n /= np.maximum(np.linalg.norm(face_n, axis=1, keepdims=True), 1e-300)
+    normals = np.zeros_like(vertices)
+    for k in range(3):
+        e1 = tri[:, (k + 1) % 3] - tri[:, k]
+        e2 = tri[:, (k + 2) % 3] - tri[:, k]
+        cos = np.einsum("ij,ij->i", e1, e2) / np.maximum(
+            np.linalg.norm(e1, axis=1) * np.linalg.norm(e2, axis=1), 1e-300
+        )
+        angle = np.arccos(np.clip(cos, -1.0, 1.0))
+        np.add.at(normals, faces[:, k], face_n * angle[:, None])
+    return normals / np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-300)
+
+
+def refine_to_edge_length(mesh: trimesh.Trimesh, max_edge_mm: float) -> trimesh.Trimesh:
+    """Split triangles until no edge is longer than ``max_edge_mm``; shared vertices stay shared."""
+    area = float(mesh.area)
+    expected = area / (0.43 * max_edge_mm**2)  # equilateral triangles of that edge length
+    if expected > MAX_TRIANGLES:
+        raise DesignError(
+            f"the relief needs about {expected:,.0f} triangles on this mesh (more than {MAX_TRIANGLES:,}); "
+            "increase texture.feature_size_mm or reduce base.scale"
+        )
+    vertices, faces = trimesh.remesh.subdivide_to_size(
+        mesh.vertices, mesh.faces, max_edge=max_edge_mm, max_iter=20
+    )
+    refined = trimesh.Trimesh(vertices=vertices, faces=faces, process=False)
+    refined.merge_vertices()
+    return trimesh.Trimesh(vertices=refined.vertices, faces=refined.faces, process=False)
+
+
+def displace_along_normals(mesh: trimesh.Trimesh, offsets_mm: np.ndarray) -> trimesh.Trimesh:
+    """Move each vertex outward along its angle-weighted normal by ``offsets_mm`` (mm).
+
+    Connectivity is unchanged, so a closed mesh stays closed; offsets larger than
+    the local radius of curvature can make the surface self-intersect.
+    """
+    normals = angle_weighted_normals(np.asarray(mesh.vertices), np.asarray(mesh.faces))
+    moved = mesh.vertices + normals * offsets_mm[:, None]
+    return trimesh.Trimesh(vertices=moved, faces=mesh.faces, process=False)

@@ -1,0 +1,314 @@
+"""Design to outputs: relief, printable mesh, checks, predicted appearance, preview, files.
+
+Each stage is a pure function of the design (and its seed); files are staged and
+moved into place only at the end.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import platform
+from dataclasses import dataclass, field
+from importlib import metadata
+from importlib.resources import as_file, files
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import trimesh
+
+from printapp.design import Design, MeshBase, TileBase, load_design, resolved_toml
+from printapp.exporters import OutputFolder, stl_bytes, threemf_bytes
+from printapp.heightfield import HeightField
+from printapp.mesh import (
+    SolidCheck,
+    check_solid,
+    displace_along_normals,
+    load_closed_mesh,
+    refine_to_edge_length,
+    slab_from_heightfield,
+)
+from printapp.progress import StageTimer
+from printapp.texture import evaluate_texture, normalise_peak_to_valley, relief_heightfield
+from render.microfacet import SlopeRoughness, slope_roughness
+
+DEFAULT_DESIGN = files("printapp").joinpath("data/default_design.toml")
+_PATCH_FEATURES = 12.0  # side of the flat patch used for appearance statistics, in base-octave features
+
+
+@dataclass
+class Relief:
+    """The printable model and what was measured on it."""
+
+    mesh: trimesh.Trimesh
+    patch: HeightField
+    """A flat patch of the relief, at the design's pitch and amplitude scale, for appearance."""
+
+
+@dataclass
+class Outcome:
+    """The result of a design run."""
+
+    manifest: dict[str, Any]
+    written: list[Path]
+    passed: bool
+    reasons: list[str] = field(default_factory=list)
+    render_warning: str | None = None
+
+
+def build_relief(design: Design) -> Relief:
+    """The displaced, closed model of a design (mm) and a flat patch of its relief."""
+    texture = design.texture
+    pitch = design.pitch_mm
+    if isinstance(design.base, TileBase):
+        field_ = relief_heightfield(design)
+        return Relief(mesh=slab_from_heightfield(field_, design.base.thickness_mm), patch=field_)
+    assert isinstance(design.base, MeshBase)
+    base = load_closed_mesh(design.base.path, design.base.scale)
+    # Four vertices per base-octave feature along an edge resolve the relief's shape;
+    # finer than the printer's pixel is wasted.
+    edge = max(texture.feature_size_mm / 4.0, pitch)
+    refined = refine_to_edge_length(base, edge)
+    raw = evaluate_texture(np.asarray(refined.vertices), texture, pitch_mm=edge)
+    lo, hi = float(raw.min()), float(raw.max())
+    mesh = displace_along_normals(refined, normalise_peak_to_valley(raw, design.relief.amplitude_mm))
+    # The patch uses the same value-to-height scale as the mesh, so its slopes are the mesh's.
+    side = _PATCH_FEATURES * texture.feature_size_mm
+    n = max(2, min(1024, round(side / pitch) + 1))
+    step = side / (n - 1)
+    xx, yy = np.meshgrid(np.arange(n) * step, np.arange(n) * step)
+    values = evaluate_texture(np.column_stack([xx.ravel(), yy.ravel()]), texture, pitch_mm=step).reshape(n, n)
+    scale = design.relief.amplitude_mm / (hi - lo) if hi > lo else 0.0
+    return Relief(mesh=mesh, patch=HeightField((values - lo) * scale, step, step))
+
+
+def verify(
+    design: Design, solid: SolidCheck, appearance: SlopeRoughness, image: np.ndarray | None
+) -> tuple[list[str], list[str]]:
+    """Printability and appearance checks: (passed descriptions, failure reasons)."""
+    passed: list[str] = []
+    failed: list[str] = []
+    profile = design.printer.profile
+
+    def check(ok: bool, good: str, bad: str) -> None:
+        (passed if ok else failed).append(good if ok else bad)
+
+    check(
+        solid.ok,
+        "mesh is closed, consistently oriented and manifold",
+        f"mesh is not a valid solid (watertight={solid.watertight}, oriented={solid.winding_consistent}, "
+        f"manifold3d: {solid.manifold_status})",
+    )
+    sx, sy, sz = solid.size_mm
+    w, d = profile.display_width_mm, profile.display_height_mm
+    fits = (sx <= w and sy <= d) or (sx <= d and sy <= w)
+    check(
+        fits and sz <= profile.max_print_height_mm,
+        f"fits the {profile.label} build volume",
+        f"model is {sx:.1f} x {sy:.1f} x {sz:.1f} mm; the {profile.label} prints at most "
+        f"{w:g} x {d:g} x {profile.max_print_height_mm:g} mm",
+    )
+    lh = design.layer_height_mm
+    check(
+        design.relief.amplitude_mm >= lh,
+        f"relief ({design.relief.amplitude_mm:g} mm) spans at least one layer ({lh:g} mm)",
+        f"relief.amplitude_mm {design.relief.amplitude_mm:g} mm is less than one layer ({lh:g} mm): "
+        "the relief would print flat",
+    )
+    two_px = 2.0 * profile.pitch_mm
+    check(
+        design.texture.feature_size_mm >= two_px,
+        f"texture features ({design.texture.feature_size_mm:g} mm) span at least two pixels "
+        f"({two_px:.3f} mm)",
+        f"texture.feature_size_mm {design.texture.feature_size_mm:g} mm is below two printer pixels "
+        f"({two_px:.3f} mm): the texture cannot be printed",
+    )
+    targets = design.appearance
+    if targets.roughness is not None:
+        lo, hi = targets.roughness
+        value = appearance.roughness
+        check(
+            lo <= value <= hi,
+            f"roughness {value:.3f} is within [{lo:g}, {hi:g}]",
+            f"roughness {value:.3f} misses the target [{lo:g}, {hi:g}] by "
+            f"{(lo - value) if value < lo else (value - hi):.3f}",
+        )
+    if targets.anisotropy is not None:
+        lo, hi = targets.anisotropy
+        value = appearance.anisotropy
+        check(
+            lo <= value <= hi,
+            f"anisotropy {value:.2f} is within [{lo:g}, {hi:g}]",
+            f"anisotropy {value:.2f} misses the target [{lo:g}, {hi:g}] by "
+            f"{(lo - value) if value < lo else (value - hi):.2f}",
+        )
+    if image is not None:
+        finite = bool(np.all(np.isfinite(image)))
+        check(
+            finite and float(image.min()) >= 0.0 and float(image.std()) > 0.0,
+            "preview render is finite, non-negative and not blank",
+            "preview render has NaN, negative or constant pixels",
+        )
+    return passed, failed
+
+
+def _versions() -> dict[str, str]:
+    out = {"python": platform.python_version()}
+    for name in (
+        "printapp",
+        "numpy",
+        "numba",
+        "scipy",
+        "trimesh",
+        "manifold3d",
+        "mitsuba",
+        "drjit",
+        "pydantic",
+    ):
+        try:
+            out[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            out[name] = "not installed"
+    return out
+
+
+def _finite_or_none(value: float) -> float | None:
+    return None if not math.isfinite(value) else round(value, 6)
+
+
+def run_design(
+    design: Design,
+    out_dir: str | Path,
+    *,
+    source: str = "design",
+    force: bool = False,
+    quiet: bool = False,
+    render: bool = True,
+) -> Outcome:
+    """Run a design end to end and write its outputs into ``out_dir``.
+
+    Writes ``model.stl``, ``model.3mf``, ``preview.png``, ``design.resolved.toml`` and
+    ``manifest.json``. When verification fails, the model files are written only with
+    ``force``; everything else is written so that the user can see why.
+    """
+    from PIL import Image
+
+    from render.mitsuba_adapter import choose_variant, render_resin_mesh, to_srgb8
+
+    with OutputFolder(out_dir) as out, StageTimer(quiet=quiet) as timer:
+        with timer.stage("relief", "relief and printable mesh"):
+            relief = build_relief(design)
+        mesh = relief.mesh
+        with timer.stage("check", "solid checks (trimesh, manifold3d)"):
+            solid = check_solid(mesh)
+        with timer.stage("appearance", "predicted appearance (slopes)"):
+            sx, sy = relief.patch.slopes()
+            appearance = slope_roughness(sx, sy)
+        image = None
+        choice = None
+        if render:
+            with timer.stage("render", "path-traced preview (Mitsuba 3)"):
+                choice = choose_variant()
+                r = design.render
+                image = render_resin_mesh(
+                    np.asarray(mesh.vertices),
+                    np.asarray(mesh.faces),
+                    body_albedo=design.material.body_albedo,
+                    refractive_index=design.material.refractive_index,
+                    width_px=r.width_px,
+                    height_px=r.height_px,
+                    spp=r.spp,
+                    seed=design.texture.seed,
+                    elevation_rad=r.elevation_rad,
+                    azimuth_rad=r.azimuth_rad,
+                )
+        with timer.stage("verify", "verification"):
+            passed, failed = verify(design, solid, appearance, image)
+        ok = not failed
+        with timer.stage("write", "writing outputs"):
+            if image is not None:
+                Image.fromarray(to_srgb8(image)).save(
+                    out.path("preview.png"), optimize=False, compress_level=6
+                )
+            out.write_text("design.resolved.toml", resolved_toml(design))
+            if ok or force:
+                out.write_bytes("model.stl", stl_bytes(mesh.vertices, mesh.faces))
+                out.write_bytes("model.3mf", threemf_bytes(mesh.vertices, mesh.faces, design.name))
+        profile = design.printer.profile
+        lo, hi = solid.bbox_min_mm, solid.bbox_max_mm
+        grid = list(relief.patch.shape) if isinstance(design.base, TileBase) else None
+        manifest: dict[str, Any] = {
+            "printapp": _versions()["printapp"],
+            "versions": _versions(),
+            "design": {"name": design.name, "source": source, "base": design.base.shape},
+            "seed": design.texture.seed,
+            "stages_s": dict(timer.seconds),
+            "triangles": solid.triangles,
+            "vertices": int(len(mesh.vertices)),
+            "watertight": solid.watertight,
+            "winding_consistent": solid.winding_consistent,
+            "manifold": solid.manifold,
+            "genus": solid.genus,
+            "volume_mm3": round(solid.volume_mm3, 6),
+            "bbox_mm": {
+                "min": [round(v, 6) for v in lo],
+                "max": [round(v, 6) for v in hi],
+                "size": [round(v, 6) for v in solid.size_mm],
+            },
+            "relief": {
+                "amplitude_mm": design.relief.amplitude_mm,
+                "pitch_mm": design.pitch_mm,
+                "grid": grid,
+                "sq_um": round(float(np.std(relief.patch.heights_mm)) * 1000.0, 4),
+            },
+            "printer": {
+                "name": profile.name,
+                "pixel_pitch_mm": profile.pitch_mm,
+                "layer_height_mm": design.layer_height_mm,
+                "layers": profile.layer_count(solid.size_mm[2], design.layer_height_mm),
+            },
+            "appearance": {
+                "method": "relief slope statistics, Beckmann roughness (geometric optics)",
+                "roughness": _finite_or_none(appearance.roughness),
+                "anisotropy": _finite_or_none(appearance.anisotropy),
+                "alpha_major": round(appearance.alpha_major, 6),
+                "alpha_minor": round(appearance.alpha_minor, 6),
+                "highlight_azimuth_deg": round(math.degrees(appearance.major_azimuth_rad), 3),
+            },
+            "render": None
+            if image is None or choice is None
+            else {
+                "variant": choice.variant,
+                "spp": design.render.spp,
+                "size_px": [design.render.width_px, design.render.height_px],
+                "mean_linear_rgb": [round(float(v), 6) for v in image.reshape(-1, 3).mean(axis=0)],
+            },
+            "verification": {
+                "passed": ok,
+                "checks": passed,
+                "reasons": failed,
+                "forced": bool(force and not ok),
+            },
+        }
+        staged = [
+            n
+            for n in ("model.stl", "model.3mf", "preview.png", "design.resolved.toml")
+            if out.path(n).exists()
+        ]
+        manifest["outputs"] = [*staged, "manifest.json"]
+        out.write_text("manifest.json", json.dumps(manifest, indent=2) + "\n")
+        written = out.commit(staged + ["manifest.json"])
+    return Outcome(
+        manifest=manifest,
+        written=written,
+        passed=ok,
+        reasons=failed,
+        render_warning=None if choice is None else choice.warning,
+    )
+
+
+def load_default_design() -> Design:
+    """The built-in design that ``printapp demo`` runs."""
+    with as_file(DEFAULT_DESIGN) as path:
+        return load_design(path)

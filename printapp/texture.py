@@ -1,0 +1,75 @@
+"""Evaluate a design's texture at points in millimetres and turn it into relief."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+import noise
+from printapp.design import Design, Texture, TileBase
+from printapp.heightfield import HeightField
+
+
+def to_noise_units(points_mm: np.ndarray, texture: Texture) -> np.ndarray:
+    """Map points (mm) to noise coordinates: stretch along ``angle``, then one cell per feature size."""
+    pts = np.array(points_mm, dtype=np.float64, copy=True)
+    if texture.stretch != 1.0:
+        c, s = math.cos(texture.angle_rad), math.sin(texture.angle_rad)
+        u = c * pts[:, 0] + s * pts[:, 1]
+        v = -s * pts[:, 0] + c * pts[:, 1]
+        u /= texture.stretch
+        pts[:, 0] = c * u - s * v
+        pts[:, 1] = s * u + c * v
+    return pts / texture.feature_size_mm
+
+
+def evaluate_texture(points_mm: np.ndarray, texture: Texture, pitch_mm: float | None = None) -> np.ndarray:
+    """Raw texture values at ``points_mm`` ((n, 2) or (n, 3), mm).
+
+    ``pitch_mm`` (the sampling pitch) drops fBm/turbulence octaves finer than two
+    samples: a printer cannot reproduce them, and sampling them would alias.
+    """
+    pts = to_noise_units(points_mm, texture)
+    pitch = None if pitch_mm is None else pitch_mm / texture.feature_size_mm
+    common = {"seed": texture.seed, "impulses": texture.impulses, "cell_seed": texture.cell_seed}
+    if texture.kind == "scn":
+        return noise.sparse_convolution(pts, **common)
+    if texture.kind == "fbm":
+        return noise.fbm(
+            pts,
+            octaves=texture.octaves,
+            lacunarity=texture.lacunarity,
+            H=texture.H,
+            min_pitch=pitch,
+            **common,
+        )
+    return noise.turbulence(pts, low=texture.low, high=texture.high, min_pitch=pitch, **common)
+
+
+def normalise_peak_to_valley(values: np.ndarray, amplitude_mm: float) -> np.ndarray:
+    """Scale values affinely so that they span exactly [0, amplitude_mm]."""
+    lo, hi = float(values.min()), float(values.max())
+    if hi - lo <= 0.0:
+        return np.zeros_like(values)
+    return (values - lo) * (amplitude_mm / (hi - lo))
+
+
+def tile_grid_shape(base: TileBase, pitch_mm: float) -> tuple[int, int, float, float]:
+    """Samples (ny, nx) and exact pitches (dy, dx) that cover the tile edge to edge at about ``pitch_mm``."""
+    nx = max(2, round(base.width_mm / pitch_mm) + 1)
+    ny = max(2, round(base.depth_mm / pitch_mm) + 1)
+    return ny, nx, base.depth_mm / (ny - 1), base.width_mm / (nx - 1)
+
+
+def relief_heightfield(design: Design) -> HeightField:
+    """The relief of a tile design: texture on the tile's grid, scaled to the amplitude (mm)."""
+    if not isinstance(design.base, TileBase):
+        raise TypeError("relief_heightfield needs a tile design")
+    ny, nx, dy, dx = tile_grid_shape(design.base, design.pitch_mm)
+    x = np.arange(nx) * dx
+    y = np.arange(ny) * dy
+    xx, yy = np.meshgrid(x, y)
+    pts = np.column_stack([xx.ravel(), yy.ravel()])
+    values = evaluate_texture(pts, design.texture, pitch_mm=max(dx, dy)).reshape(ny, nx)
+    return HeightField(normalise_peak_to_valley(values, design.relief.amplitude_mm), dx, dy)

@@ -1,0 +1,215 @@
+"""End to end through the real command line: the demo, bad input, verification failures."""
+
+import hashlib
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+from PIL import Image
+
+ROOT = Path(__file__).parent.parent
+
+
+def printapp(*args, cwd=None):
+    return subprocess.run(
+        [sys.executable, "-m", "printapp", *map(str, args)],
+        capture_output=True,
+        text=True,
+        cwd=cwd,
+        timeout=600,
+    )
+
+
+def digest(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+@pytest.fixture(scope="module")
+def demo_runs(tmp_path_factory):
+    base = tmp_path_factory.mktemp("demo")
+    first = printapp("demo", "-o", base / "a", "--quiet")
+    second = printapp("demo", "-o", base / "b", "--quiet")
+    return base, first, second
+
+
+def test_demo_writes_every_output(demo_runs):
+    base, first, _ = demo_runs
+    assert first.returncode == 0, first.stderr
+    names = {p.name for p in (base / "a").iterdir()}
+    assert names == {"model.stl", "model.3mf", "preview.png", "design.resolved.toml", "manifest.json"}
+    assert "Traceback" not in first.stderr
+
+
+def test_demo_model_is_a_watertight_slab_of_the_right_volume(demo_runs):
+    base, _, _ = demo_runs
+    mesh = trimesh.load(base / "a" / "model.stl", file_type="stl")
+    assert mesh.is_watertight and mesh.is_winding_consistent
+    manifest = json.loads((base / "a" / "manifest.json").read_text())
+    w, d, _ = manifest["bbox_mm"]["size"]
+    assert (w, d) == pytest.approx((20.0, 20.0))
+    # Analytic bounds: the slab lies between the base box and the box to the relief's peak,
+    # and the relief of zero-mean noise mapped onto [0, A] fills it about half way.
+    base_box = 20.0 * 20.0 * 2.0
+    assert base_box < mesh.volume < 20.0 * 20.0 * 2.3
+    assert mesh.volume == pytest.approx(20.0 * 20.0 * (2.0 + 0.3 / 2), rel=0.01)
+    assert manifest["volume_mm3"] == pytest.approx(mesh.volume, rel=1e-5)
+    assert manifest["triangles"] == len(mesh.faces)
+    assert manifest["watertight"] is True and manifest["verification"]["passed"] is True
+    assert manifest["seed"] == 7
+    assert set(manifest["stages_s"]) >= {"relief", "check", "render", "write"}
+    assert manifest["printer"]["layers"] == 46  # 1 + ceil((2.3 - 0.05) / 0.05)
+
+
+def test_demo_preview_is_an_image_of_something(demo_runs):
+    base, _, _ = demo_runs
+    image = np.asarray(Image.open(base / "a" / "preview.png").convert("RGB"), dtype=float)
+    assert image.shape == (360, 480, 3)
+    assert image.std() > 10  # not blank
+    centre = image[140:220, 180:300].mean(axis=(0, 1))
+    assert centre[0] > centre[2] + 30  # the orange tile fills the middle of the frame
+
+
+def test_demo_is_deterministic(demo_runs):
+    base, _, second = demo_runs
+    assert second.returncode == 0, second.stderr
+    for name in ("model.stl", "model.3mf", "design.resolved.toml", "preview.png"):
+        assert digest(base / "a" / name) == digest(base / "b" / name), name
+
+
+def run_bad(tmp_path, design_text: str | None, *extra):
+    design = tmp_path / "d.toml"
+    if design_text is not None:
+        design.write_text(design_text)
+    out = tmp_path / "out"
+    result = printapp("design", design, "-o", out, "--quiet", *extra)
+    return result, out
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        (None, "no such design file"),
+        ("[texture\nkind = 'fbm'\n", "TOML syntax error"),
+        ("[texture]\noctavs = 3\n", "unknown key 'texture.octavs'; did you mean 'octaves'?"),
+        ("[relief]\namplitude_mm = 'deep'\n", "relief.amplitude_mm: expected a number"),
+        ("[texture]\nH = 2.0\n", "texture.H: expected a value in (0, 1], got 2.0"),
+        ('[base]\nshape = "mesh"\npath = "missing.stl"\n', "no such mesh file"),
+    ],
+)
+def test_bad_input_exits_2_with_one_sentence_and_writes_nothing(tmp_path, text, message):
+    result, out = run_bad(tmp_path, text)
+    assert result.returncode == 2
+    assert message in result.stderr
+    assert "Traceback" not in result.stderr + result.stdout
+    assert len([line for line in result.stderr.splitlines() if line.strip()]) == 1
+    assert not out.exists() or not any(out.iterdir())
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root can write anywhere")
+def test_unwritable_output_folder_as_user(tmp_path):
+    locked = tmp_path / "locked"
+    locked.mkdir(mode=0o500)
+    result = printapp("demo", "-o", locked / "x", "--quiet")
+    assert result.returncode == 2 and "not writable" in result.stderr
+
+
+def test_output_folder_under_a_file_is_not_writable(tmp_path):
+    blocker = tmp_path / "blocker"
+    blocker.write_text("x")
+    result = printapp("demo", "-o", blocker / "out", "--quiet")
+    assert result.returncode == 2
+    assert "output folder is not writable" in result.stderr
+    assert "Traceback" not in result.stderr
+
+
+def test_output_folder_that_is_a_file(tmp_path):
+    target = tmp_path / "taken"
+    target.write_text("x")
+    result = printapp("design", ROOT / "examples" / "fine_matte.toml", "-o", target, "--quiet")
+    assert result.returncode == 2
+    assert "output folder is a file" in result.stderr
+    assert target.read_text() == "x"
+
+
+def test_failed_verification_exits_3_without_a_model(tmp_path):
+    text = """
+[base]
+width_mm = 6.0
+depth_mm = 6.0
+[relief]
+amplitude_um = 20      # less than one 50 um layer
+[appearance]
+anisotropy = [5.0, 10.0]
+[render]
+width_px = 64
+height_px = 48
+spp = 4
+"""
+    result, out = run_bad(tmp_path, text)
+    assert result.returncode == 3
+    assert "less than one layer" in result.stderr and "anisotropy" in result.stderr
+    names = {p.name for p in out.iterdir()}
+    assert names == {"preview.png", "design.resolved.toml", "manifest.json"}
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["verification"]["passed"] is False
+    assert len(manifest["verification"]["reasons"]) == 2
+    forced, out = run_bad(tmp_path, text, "--force")
+    assert forced.returncode == 3
+    assert (out / "model.stl").exists()
+
+
+def test_mesh_design_end_to_end(tmp_path):
+    design = tmp_path / "part.toml"
+    design.write_text(
+        f"""
+[base]
+path = "{(ROOT / "data" / "meshes" / "featuretype.STL").as_posix()}"
+scale = 5.0
+[texture]
+feature_size_mm = 2.0
+[relief]
+amplitude_um = 150
+[render]
+width_px = 96
+height_px = 64
+spp = 4
+"""
+    )
+    result = printapp("design", design, "-o", tmp_path / "out", "--quiet")
+    assert result.returncode == 0, result.stderr
+    mesh = trimesh.load(tmp_path / "out" / "model.stl", file_type="stl")
+    assert mesh.is_watertight and mesh.is_winding_consistent
+    manifest = json.loads((tmp_path / "out" / "manifest.json").read_text())
+    assert manifest["genus"] == 9  # the part's holes survive the relief
+    assert manifest["design"]["base"] == "mesh"
+
+
+def test_printers_lists_the_profiles():
+    result = printapp("printers")
+    assert result.returncode == 0
+    assert "prusa-sl1" in result.stdout and "prusa-sl1s-speed" in result.stdout and "47.25" in result.stdout
+
+
+def test_help_lists_the_commands():
+    result = printapp("--help")
+    assert result.returncode == 0
+    for command in ("demo", "design", "printers", "bench"):
+        assert command in result.stdout
+
+
+def test_bench_writes_json_and_chart(tmp_path):
+    result = printapp("bench", "mesh", "--repeats", "1", "-o", tmp_path)
+    assert result.returncode == 0, result.stderr
+    report = json.loads((tmp_path / "bench.json").read_text())
+    rows = report["mesh"]["rows"]
+    assert [r["pitch_mm"] for r in rows] == [0.4, 0.2, 0.1, 0.05, 0.025]
+    errors = [r["rms_height_error_um"] for r in rows]
+    assert errors[0] > errors[-1]  # finer pitch, smaller error
+    assert (tmp_path / "mesh.png").stat().st_size > 1000
+    unknown = printapp("bench", "nope", "-o", tmp_path)
+    assert unknown.returncode == 2 and "unknown bench stage 'nope'" in unknown.stderr

@@ -1,0 +1,55 @@
+"""STL and 3MF writers, read back by trimesh (an independent reader); staging never leaves partial files."""
+
+import io
+import zipfile
+
+import numpy as np
+import pytest
+import trimesh
+
+from printapp.errors import DesignError
+from printapp.exporters import OutputFolder, stl_bytes, threemf_bytes
+
+
+@pytest.fixture
+def sphere():
+    return trimesh.creation.icosphere(subdivisions=2, radius=3.0)
+
+
+def test_stl_round_trip(sphere):
+    data = stl_bytes(sphere.vertices, sphere.faces)
+    assert len(data) == 84 + 50 * len(sphere.faces)
+    back = trimesh.load(io.BytesIO(data), file_type="stl")
+    assert back.is_watertight
+    assert back.volume == pytest.approx(sphere.volume, rel=1e-5)
+    stored = np.frombuffer(data[84:], dtype=np.dtype([("n", "<f4", 3), ("v", "<f4", (3, 3)), ("a", "<u2")]))
+    np.testing.assert_allclose(stored["n"], sphere.face_normals, atol=1e-6)
+
+
+def test_3mf_round_trip_and_determinism(sphere):
+    data = threemf_bytes(sphere.vertices, sphere.faces, name='ball "<1>"')
+    assert data == threemf_bytes(sphere.vertices, sphere.faces, name='ball "<1>"')
+    with zipfile.ZipFile(io.BytesIO(data)) as archive:
+        assert set(archive.namelist()) == {"[Content_Types].xml", "_rels/.rels", "3D/3dmodel.model"}
+    back = trimesh.load(io.BytesIO(data), file_type="3mf", force="mesh")
+    assert len(back.faces) == len(sphere.faces)
+    assert back.volume == pytest.approx(sphere.volume, rel=1e-6)
+
+
+def test_output_folder_moves_only_on_commit(tmp_path):
+    dest = tmp_path / "out"
+    with pytest.raises(RuntimeError), OutputFolder(dest) as out:
+        out.write_text("a.txt", "half")
+        raise RuntimeError("interrupted")
+    assert list(dest.iterdir()) == []
+    with OutputFolder(dest) as out:
+        out.write_text("a.txt", "whole")
+        out.commit()
+    assert [p.name for p in dest.iterdir()] == ["a.txt"]
+
+
+def test_output_folder_that_is_a_file(tmp_path):
+    target = tmp_path / "file"
+    target.write_text("x")
+    with pytest.raises(DesignError, match="output folder is a file"), OutputFolder(target):
+        pass

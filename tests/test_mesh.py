@@ -1,0 +1,90 @@
+"""Printable meshes: invariants (closed, oriented, manifold, genus, volume), not bytes."""
+
+import numpy as np
+import pytest
+import trimesh
+
+from printapp.errors import DesignError
+from printapp.heightfield import HeightField
+from printapp.mesh import (
+    angle_weighted_normals,
+    check_solid,
+    displace_along_normals,
+    load_closed_mesh,
+    refine_to_edge_length,
+    slab_from_heightfield,
+)
+
+DATA = __import__("pathlib").Path(__file__).parent.parent / "data" / "meshes"
+
+
+def triangulated_volume(h: np.ndarray, dx: float, dy: float, base: float) -> float:
+    """Closed form for the slab: base prism plus, per cell, the two prisms under its triangles."""
+    cells = 2 * h[:-1, :-1] + h[:-1, 1:] + h[1:, :-1] + 2 * h[1:, 1:]
+    w, d = (h.shape[1] - 1) * dx, (h.shape[0] - 1) * dy
+    return w * d * base + dx * dy * float(cells.sum()) / 6.0
+
+
+@pytest.mark.parametrize(
+    ("ny", "nx", "dx", "dy"), [(2, 2, 1.0, 1.0), (7, 13, 0.1, 0.25), (50, 40, 0.05, 0.05)]
+)
+def test_slab_is_a_closed_oriented_genus_zero_solid(ny, nx, dx, dy):
+    rng = np.random.default_rng(ny * nx)
+    h = rng.uniform(0, 0.3, size=(ny, nx))
+    mesh = slab_from_heightfield(HeightField(h, dx, dy), 1.5)
+    check = check_solid(mesh)
+    assert check.watertight and check.winding_consistent and check.manifold
+    assert check.genus == 0
+    assert check.volume_mm3 == pytest.approx(triangulated_volume(h, dx, dy, 1.5), rel=1e-12)
+    assert check.triangles == 2 * (nx - 1) * (ny - 1) + 3 * (2 * (nx - 1) + 2 * (ny - 1))
+    np.testing.assert_allclose(check.bbox_min_mm, [0, 0, 0], atol=1e-12)
+    # every face normal of the floor points down, every wall normal outward
+    normals = mesh.face_normals
+    floor = np.all(mesh.vertices[mesh.faces][:, :, 2] == 0, axis=1)
+    assert np.allclose(normals[floor], [0, 0, -1])
+
+
+def test_flat_slab_volume_is_the_box():
+    mesh = slab_from_heightfield(HeightField(np.zeros((5, 9)), 0.5, 0.25), 2.0)
+    assert mesh.volume == pytest.approx(4.0 * 1.0 * 2.0, rel=1e-12)
+
+
+def test_slab_rejects_a_top_below_the_floor():
+    with pytest.raises(ValueError, match="base_thickness_mm"):
+        slab_from_heightfield(HeightField(np.full((3, 3), -3.0), 1.0, 1.0), 2.0)
+
+
+def test_angle_weighted_normals_of_a_cube_point_along_the_diagonals():
+    cube = trimesh.creation.box()
+    normals = angle_weighted_normals(cube.vertices, cube.faces)
+    expected = cube.vertices / np.linalg.norm(cube.vertices, axis=1, keepdims=True)
+    np.testing.assert_allclose(normals, expected, atol=1e-12)
+
+
+def test_displacing_a_closed_mesh_keeps_it_closed():
+    mesh = load_closed_mesh(DATA / "featuretype.STL", scale=5.0)
+    refined = refine_to_edge_length(mesh, 1.0)
+    assert np.max(refined.edges_unique_length) <= 1.0 + 1e-9
+    assert refined.volume == pytest.approx(mesh.volume, rel=1e-9)
+    offsets = np.full(len(refined.vertices), 0.1)
+    moved = displace_along_normals(refined, offsets)
+    check = check_solid(moved)
+    assert check.watertight and check.winding_consistent and check.manifold
+    assert check.genus == check_solid(mesh).genus
+    assert moved.volume > mesh.volume  # outward
+
+
+def test_open_meshes_are_refused_with_a_count_of_open_edges():
+    with pytest.raises(
+        DesignError, match=r"teapot.stl: expected a closed \(watertight\) mesh, found \d+ open edges"
+    ):
+        load_closed_mesh(DATA / "teapot.stl")
+    with pytest.raises(DesignError, match="no such mesh file"):
+        load_closed_mesh(DATA / "missing.stl")
+
+
+def test_unreadable_mesh_file(tmp_path):
+    bad = tmp_path / "bad.stl"
+    bad.write_bytes(b"solid nonsense\nfacet normal 1 2\n")
+    with pytest.raises(DesignError, match="bad.stl"):
+        load_closed_mesh(bad)

@@ -32,6 +32,7 @@ class StageResult:
     rows: list[dict[str, Any]]
     chart: Callable[[Path], None] | None = None
     notes: list[str] = field(default_factory=list)
+    extra: dict[str, Any] = field(default_factory=dict)
 
 
 def median_seconds(fn: Callable[[], object], repeats: int) -> tuple[float, list[float]]:
@@ -178,7 +179,18 @@ def bench_pipeline(repeats: int) -> StageResult:
     )
 
 
-STAGES: dict[str, Callable[[int], StageResult]] = {"mesh": bench_mesh, "pipeline": bench_pipeline}
+def bench_noise(repeats: int) -> StageResult:
+    """Noise kernels beside the plain per-point kernel and pyfastnoisesimd (see printapp.bench_noise)."""
+    from printapp.bench_noise import bench_noise as run
+
+    return run(repeats)
+
+
+STAGES: dict[str, Callable[[int], StageResult]] = {
+    "noise": bench_noise,
+    "mesh": bench_mesh,
+    "pipeline": bench_pipeline,
+}
 
 
 def run_bench(
@@ -203,7 +215,12 @@ def run_bench(
         console.print(table)
         for note in result.notes:
             console.print(f"  {note}")
-        report[name] = {"description": result.description, "rows": result.rows, "notes": result.notes}
+        report[name] = {
+            "description": result.description,
+            "rows": result.rows,
+            "notes": result.notes,
+            **result.extra,
+        }
         if result.chart is not None:
             chart_path = out_dir / f"{name}.png"
             tmp = out_dir / f".{name}.png.partial.png"

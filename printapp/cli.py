@@ -7,6 +7,7 @@ the commands that need them, so ``printapp --help`` starts fast.
 from __future__ import annotations
 
 import sys
+from enum import StrEnum
 from pathlib import Path
 from typing import Annotated
 
@@ -112,6 +113,90 @@ def design(
 ) -> None:
     """Build a design: model.stl, model.3mf, preview.png, design.resolved.toml, manifest.json."""
     _run(design_file, out if out is not None else Path(f"{design_file.stem}-out"), force, quiet)
+
+
+class TextureKind(StrEnum):
+    scn = "scn"
+    fbm = "fbm"
+    turbulence = "turbulence"
+    marble = "marble"
+
+
+@app.command()
+def texture(
+    kind: Annotated[TextureKind, typer.Argument(help="scn, fbm, turbulence or marble.")],
+    out: Annotated[
+        Path, typer.Option("--out", "-o", help="Output: .png (8-bit grey) or .npy (raw float64).")
+    ],
+    size: Annotated[int, typer.Option(min=2, max=8192, help="Image side (pixels).")] = 512,
+    cells: Annotated[float, typer.Option(min=1e-6, help="Noise cells across the image.")] = 8.0,
+    seed: Annotated[int, typer.Option(min=0, help="Random seed.")] = 0,
+    impulses: Annotated[int, typer.Option(min=1, max=1024, help="Impulses per cell N.")] = 30,
+    cell_seed: Annotated[str, typer.Option(help="'hash' or the talk's 'frisvad'.")] = "hash",
+    octaves: Annotated[int, typer.Option(min=1, max=24, help="fbm: octaves.")] = 5,
+    lacunarity: Annotated[float, typer.Option(help="fbm: frequency ratio between octaves (> 1).")] = 2.0,
+    hurst: Annotated[float, typer.Option("--H", help="fbm: fractional increment in (0, 1].")] = 1.0,
+    low: Annotated[int, typer.Option(min=0, help="turbulence: first octave.")] = 0,
+    high: Annotated[int, typer.Option(min=0, help="turbulence: last octave.")] = 4,
+    contrast: Annotated[
+        float, typer.Option("--A", help="marble: contrast A in 0.5 (A noise(B p) + 1).")
+    ] = 1.0,
+    frequency: Annotated[float, typer.Option("--B", help="marble: frequency B.")] = 1.0,
+) -> None:
+    """Write a texture image: sparse convolution noise, fBm, turbulence or the talk's marble mapping.
+
+    PNG images of scn, fbm and turbulence are scaled from their minimum to their maximum;
+    marble is 0.5 (A noise(B p) + 1) clipped to [0, 1]. .npy files hold the raw values.
+    """
+    import numpy as np
+
+    import noise
+    from printapp.exporters import atomic_write_bytes
+
+    suffix = out.suffix.lower()
+    if suffix not in (".png", ".npy"):
+        raise _fail(PrintappError(f"{out}: expected an output file ending in .png or .npy"))
+    axis = (np.arange(size) + 0.5) * (cells / size)
+    common = {"seed": seed, "impulses": impulses, "cell_seed": cell_seed}
+    try:
+        if kind is TextureKind.scn:
+            values = noise.sparse_convolution_grid(axis, axis, **common)
+        elif kind is TextureKind.fbm:
+            values = noise.fbm_grid(axis, axis, octaves=octaves, lacunarity=lacunarity, H=hurst, **common)
+        elif kind is TextureKind.turbulence:
+            values = noise.turbulence_grid(axis, axis, low=low, high=high, **common)
+        else:
+            if not (np.isfinite(contrast) and np.isfinite(frequency)):
+                raise ValueError("A, B: expected finite numbers")
+            values = 0.5 * (
+                contrast * noise.sparse_convolution_grid(axis * frequency, axis * frequency, **common) + 1
+            )
+    except ValueError as exc:
+        name, _, rest = str(exc).partition(":")
+        raise _fail(PrintappError(f"--{name.replace('_', '-')}:{rest}")) from None
+    try:
+        if suffix == ".npy":
+            import io
+
+            buffer = io.BytesIO()
+            np.save(buffer, values)
+            atomic_write_bytes(out, buffer.getvalue())
+        else:
+            import io
+
+            from PIL import Image
+
+            if kind is TextureKind.marble:
+                unit = np.clip(values, 0.0, 1.0)
+            else:
+                span = float(values.max() - values.min())
+                unit = (values - values.min()) / span if span > 0 else np.zeros_like(values)
+            buffer = io.BytesIO()
+            Image.fromarray(np.round(unit[::-1] * 255).astype(np.uint8), mode="L").save(buffer, format="PNG")
+            atomic_write_bytes(out, buffer.getvalue())
+    except PrintappError as exc:
+        raise _fail(exc) from None
+    _out.print(f"{kind.value}: {size}x{size}, mean {values.mean():.4f}, std {values.std():.4f}; wrote {out}")
 
 
 @app.command()

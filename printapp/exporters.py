@@ -82,6 +82,30 @@ def threemf_bytes(vertices: np.ndarray, faces: np.ndarray, name: str = "printapp
     return buffer.getvalue()
 
 
+def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
+    """Write ``data`` to a temporary file beside ``path``, then rename it into place.
+
+    Raises
+    ------
+    DesignError
+        If the folder does not exist or cannot be written.
+    """
+    path = Path(path)
+    folder = path.parent if str(path.parent) else Path(".")
+    if not folder.is_dir():
+        raise DesignError(f"{path}: the folder {folder} does not exist")
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".partial", dir=folder)
+        with os.fdopen(fd, "wb") as handle:
+            handle.write(data)
+        os.replace(tmp, path)
+    except OSError as exc:
+        if "tmp" in locals() and os.path.exists(tmp):
+            os.unlink(tmp)
+        raise DesignError(f"{path}: cannot write the file ({exc.strerror or exc})") from None
+    return path
+
+
 class OutputFolder:
     """Stage outputs in a hidden folder beside their destination; move them in on success.
 

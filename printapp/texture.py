@@ -62,14 +62,41 @@ def tile_grid_shape(base: TileBase, pitch_mm: float) -> tuple[int, int, float, f
     return ny, nx, base.depth_mm / (ny - 1), base.width_mm / (nx - 1)
 
 
+def evaluate_texture_grid(
+    x_mm: np.ndarray, y_mm: np.ndarray, texture: Texture, pitch_mm: float
+) -> np.ndarray:
+    """Raw texture values on the grid ``x_mm`` by ``y_mm`` (z = 0), shaped (len(y), len(x)).
+
+    Uses the noise package's grid fast path when the texture's axes line up with the
+    grid (no stretch, or a stretch along x); otherwise evaluates the points one by one.
+    """
+    if texture.stretch == 1.0 or texture.angle_rad == 0.0:
+        xs = x_mm / (texture.feature_size_mm * texture.stretch)
+        ys = y_mm / texture.feature_size_mm
+        pitch = pitch_mm / texture.feature_size_mm
+        common = {"seed": texture.seed, "impulses": texture.impulses, "cell_seed": texture.cell_seed}
+        if texture.kind == "scn":
+            return noise.sparse_convolution_grid(xs, ys, **common)
+        if texture.kind == "fbm":
+            return noise.fbm_grid(
+                xs,
+                ys,
+                octaves=texture.octaves,
+                lacunarity=texture.lacunarity,
+                H=texture.H,
+                min_pitch=pitch,
+                **common,
+            )
+        return noise.turbulence_grid(xs, ys, low=texture.low, high=texture.high, min_pitch=pitch, **common)
+    xx, yy = np.meshgrid(x_mm, y_mm)
+    pts = np.column_stack([xx.ravel(), yy.ravel()])
+    return evaluate_texture(pts, texture, pitch_mm=pitch_mm).reshape(len(y_mm), len(x_mm))
+
+
 def relief_heightfield(design: Design) -> HeightField:
     """The relief of a tile design: texture on the tile's grid, scaled to the amplitude (mm)."""
     if not isinstance(design.base, TileBase):
         raise TypeError("relief_heightfield needs a tile design")
     ny, nx, dy, dx = tile_grid_shape(design.base, design.pitch_mm)
-    x = np.arange(nx) * dx
-    y = np.arange(ny) * dy
-    xx, yy = np.meshgrid(x, y)
-    pts = np.column_stack([xx.ravel(), yy.ravel()])
-    values = evaluate_texture(pts, design.texture, pitch_mm=max(dx, dy)).reshape(ny, nx)
+    values = evaluate_texture_grid(np.arange(nx) * dx, np.arange(ny) * dy, design.texture, max(dx, dy))
     return HeightField(normalise_peak_to_valley(values, design.relief.amplitude_mm), dx, dy)

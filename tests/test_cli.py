@@ -213,3 +213,53 @@ def test_bench_writes_json_and_chart(tmp_path):
     assert (tmp_path / "mesh.png").stat().st_size > 1000
     unknown = printapp("bench", "nope", "-o", tmp_path)
     assert unknown.returncode == 2 and "unknown bench stage 'nope'" in unknown.stderr
+
+
+@pytest.mark.parametrize("kind", ["scn", "fbm", "turbulence", "marble"])
+def test_texture_images(tmp_path, kind):
+    out = tmp_path / f"{kind}.png"
+    result = printapp("texture", kind, "--size", "64", "-o", out)
+    assert result.returncode == 0, result.stderr
+    image = np.asarray(Image.open(out))
+    assert image.shape == (64, 64) and image.dtype == np.uint8
+    assert image.std() > 10
+
+
+def test_texture_raw_values_match_the_library(tmp_path):
+    import noise
+
+    out = tmp_path / "v.npy"
+    result = printapp(
+        "texture", "fbm", "--size", "32", "--cells", "4", "--octaves", "3", "--seed", "2", "-o", out
+    )
+    assert result.returncode == 0, result.stderr
+    axis = (np.arange(32) + 0.5) * (4 / 32)
+    np.testing.assert_array_equal(np.load(out), noise.fbm_grid(axis, axis, octaves=3, seed=2))
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["fbm", "--lacunarity", "1", "-o", "x.npy"], "--lacunarity: expected a number > 1"),
+        (["fbm", "--H", "0", "-o", "x.npy"], "--H: expected a number in (0, 1]"),
+        (["scn", "--cell-seed", "x", "-o", "x.npy"], "--cell-seed: expected one of"),
+        (["scn", "-o", "x.jpg"], "expected an output file ending in .png or .npy"),
+        (["scn", "-o", "missing/x.png"], "does not exist"),
+    ],
+)
+def test_texture_bad_arguments(tmp_path, args, message):
+    result = printapp("texture", *args, cwd=tmp_path)
+    assert result.returncode == 2
+    assert message in result.stderr
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_bench_noise_checks_the_fast_paths_against_the_plain_kernel(tmp_path):
+    result = printapp("bench", "noise", "--repeats", "1", "-o", tmp_path)
+    assert result.returncode == 0, result.stderr
+    report = json.loads((tmp_path / "bench.json").read_text())["noise"]
+    assert len(report["rows"]) == 4
+    assert all(row["max_abs_diff_vs_plain"] < 1e-12 for row in report["rows"])
+    distances = [r["histogram_tv_distance"] for r in report["impulse_sweep"]]
+    assert distances[0] > distances[-1]  # more impulses, closer to the large-N limit
+    assert (tmp_path / "noise.png").stat().st_size > 1000

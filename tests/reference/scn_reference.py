@@ -6,31 +6,36 @@ Written from the talk's formulas independently of the numba kernels, to check th
 import math
 
 MASK = (1 << 64) - 1
+GOLDEN = 0x9E3779B97F4A7C15
 
 
-def splitmix64(x: int) -> int:
-    z = (x + 0x9E3779B97F4A7C15) & MASK
+def mix64(z: int) -> int:
     z = ((z ^ (z >> 30)) * 0xBF58476D1CE4E5B9) & MASK
     z = ((z ^ (z >> 27)) * 0x94D049BB133111EB) & MASK
     return z ^ (z >> 31)
 
 
+def seed_key(seed: int) -> int:
+    return mix64((seed * GOLDEN + 0x632BE59BD9B4E019) & MASK)
+
+
 def rnd(key: int, n: int) -> float:
-    return (splitmix64(key ^ splitmix64(n & MASK)) >> 11) / 2.0**53
+    """Output n of the SplitMix64 stream keyed by key, as a double in [0, 1)."""
+    return (mix64((key + n * GOLDEN) & MASK) >> 11) / 2.0**53
 
 
 def cell_base(key: int, q: tuple[int, int, int], n_impulses: int, mode: str) -> int:
     if mode == "frisvad":
         dot = q[0] * 1 + q[1] * 1000 + q[2] * 576
         return (4 * n_impulses * dot) & MASK
-    h = splitmix64(key ^ (q[0] & MASK))
-    h = splitmix64(h ^ (q[1] & MASK))
-    h = splitmix64(h ^ (q[2] & MASK))
+    h = mix64(key ^ (q[0] & MASK))
+    h = mix64(((h + GOLDEN) & MASK) ^ (q[1] & MASK))
+    h = mix64(((h + GOLDEN) & MASK) ^ (q[2] & MASK))
     return (4 * n_impulses * h) & MASK
 
 
 def scn(p: tuple[float, float, float], seed: int = 0, n_impulses: int = 30, mode: str = "hash") -> float:
-    key = splitmix64(seed & MASK)
+    key = seed_key(seed)
     base = [math.floor(c - 0.5) for c in p]
     total = 0.0
     for i in range(8):

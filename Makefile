@@ -24,6 +24,11 @@ format: $(STAMP)
 	$(BIN)/ruff check --fix .
 
 bench: $(STAMP) llvm
+	@# pyfastnoisesimd (the noise peer) builds only without build isolation, after cython.
+	$(BIN)/python -c "import pyfastnoisesimd" 2>/dev/null || \
+		{ $(BIN)/python -m pip install --quiet cython setuptools wheel && \
+		  $(BIN)/python -m pip install --quiet --no-build-isolation pyfastnoisesimd; } || \
+		echo "warning: pyfastnoisesimd did not install; bench noise runs without the Perlin peer" >&2
 	$(BIN)/printapp bench -o bench-out
 
 llvm:

@@ -125,23 +125,18 @@ def verify(
         f"({two_px:.3f} mm): the texture cannot be printed",
     )
     targets = design.appearance
-    if targets.roughness is not None:
-        lo, hi = targets.roughness
-        value = appearance.roughness
+    for name, target, value, digits in (
+        ("roughness", targets.roughness, appearance.roughness, 3),
+        ("anisotropy", targets.anisotropy, appearance.anisotropy, 2),
+    ):
+        if target is None:
+            continue
+        lo, hi = target
+        miss = (lo - value) if value < lo else (value - hi)
         check(
             lo <= value <= hi,
-            f"roughness {value:.3f} is within [{lo:g}, {hi:g}]",
-            f"roughness {value:.3f} misses the target [{lo:g}, {hi:g}] by "
-            f"{(lo - value) if value < lo else (value - hi):.3f}",
-        )
-    if targets.anisotropy is not None:
-        lo, hi = targets.anisotropy
-        value = appearance.anisotropy
-        check(
-            lo <= value <= hi,
-            f"anisotropy {value:.2f} is within [{lo:g}, {hi:g}]",
-            f"anisotropy {value:.2f} misses the target [{lo:g}, {hi:g}] by "
-            f"{(lo - value) if value < lo else (value - hi):.2f}",
+            f"{name} {value:.{digits}f} is within [{lo:g}, {hi:g}]",
+            f"{name} {value:.{digits}f} misses the target [{lo:g}, {hi:g}] by {miss:.{digits}f}",
         )
     if image is not None:
         finite = bool(np.all(np.isfinite(image)))

@@ -263,3 +263,14 @@ def test_bench_noise_checks_the_fast_paths_against_the_plain_kernel(tmp_path):
     distances = [r["histogram_tv_distance"] for r in report["impulse_sweep"]]
     assert distances[0] > distances[-1]  # more impulses, closer to the large-N limit
     assert (tmp_path / "noise.png").stat().st_size > 1000
+
+
+@pytest.mark.parametrize("example", sorted(p.name for p in (ROOT / "examples").glob("*.toml")))
+def test_every_example_builds_and_passes_verification(tmp_path, example):
+    from printapp.design import load_design
+    from printapp.pipeline import run_design
+
+    outcome = run_design(load_design(ROOT / "examples" / example), tmp_path, quiet=True, render=False)
+    assert outcome.passed, outcome.reasons
+    assert outcome.manifest["watertight"] and outcome.manifest["manifold"]
+    assert (tmp_path / "model.stl").exists()

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
+from noise.frames import angle_weighted_normals
 from printapp.errors import DesignError
 from printapp.heightfield import HeightField
 
@@ -156,27 +157,6 @@ def load_closed_mesh(path: str | Path, scale: float = 1.0) -> trimesh.Trimesh:
     if mesh.volume < 0:
         mesh.invert()
     return mesh
-
-
-def angle_weighted_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """Unit vertex pseudo-normals, each face normal weighted by the face's angle at the vertex.
-
-    Thürmer & Wüthrich (1998); Bærentzen & Aanæs (2005) show these are the normals
-    for which inside/outside tests on a closed mesh are consistent.
-    """
-    tri = vertices[faces]
-    face_n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    face_n /= np.maximum(np.linalg.norm(face_n, axis=1, keepdims=True), 1e-300)
-    normals = np.zeros_like(vertices)
-    for k in range(3):
-        e1 = tri[:, (k + 1) % 3] - tri[:, k]
-        e2 = tri[:, (k + 2) % 3] - tri[:, k]
-        cos = np.einsum("ij,ij->i", e1, e2) / np.maximum(
-            np.linalg.norm(e1, axis=1) * np.linalg.norm(e2, axis=1), 1e-300
-        )
-        angle = np.arccos(np.clip(cos, -1.0, 1.0))
-        np.add.at(normals, faces[:, k], face_n * angle[:, None])
-    return normals / np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-300)
 
 
 def refine_to_edge_length(mesh: trimesh.Trimesh, max_edge_mm: float) -> trimesh.Trimesh:

@@ -4,10 +4,10 @@ import numpy as np
 import pytest
 import trimesh
 
+from noise.frames import angle_weighted_normals
 from printapp.errors import DesignError
 from printapp.heightfield import HeightField
 from printapp.mesh import (
-    angle_weighted_normals,
     check_solid,
     displace_along_normals,
     load_closed_mesh,

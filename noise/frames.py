@@ -1,0 +1,165 @@
+"""Orthonormal bases from unit normals, and vertex normals and frames on triangle meshes.
+
+Two bases (both right-handed: b1 x b2 = n):
+
+* ``"frisvad"``: Frisvad (2012), "Building an orthonormal basis from a 3D unit vector
+  without normalization", JGT 16(3). Branch-free except for the singularity at
+  n = (0, 0, -1), which it handles with a threshold on n.z.
+* ``"duff"``: Duff et al. (2017), "Building an orthonormal basis, revisited", JCGT 6(1).
+  The default. Frisvad's ``a = 1 / (1 + n.z)`` cancels catastrophically as n.z -> -1
+  (near the threshold, in float32 from about 1 + n.z < 1e-3), and the basis loses its
+  orthonormality; Duff et al. choose the sign s = copysign(1, n.z) so that the
+  denominator ``s + n.z`` never cancels, which is exact to rounding everywhere.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+ONB_METHODS = ("duff", "frisvad")
+
+
+# The constant ``one`` is passed in the array's own dtype, so that float32 input is
+# computed in float32 throughout (a float64 literal would silently widen it).
+
+
+@njit(cache=True, parallel=True)
+def _onb_frisvad(n: np.ndarray, b1: np.ndarray, b2: np.ndarray, one, threshold) -> None:
+    for k in prange(n.shape[0]):
+        x, y, z = n[k, 0], n[k, 1], n[k, 2]
+        if z < threshold:
+            b1[k, 0], b1[k, 1], b1[k, 2] = 0.0, -1.0, 0.0
+            b2[k, 0], b2[k, 1], b2[k, 2] = -1.0, 0.0, 0.0
+            continue
+        a = one / (one + z)
+        b = -x * y * a
+        b1[k, 0], b1[k, 1], b1[k, 2] = one - x * x * a, b, -x
+        b2[k, 0], b2[k, 1], b2[k, 2] = b, one - y * y * a, -y
+
+
+@njit(cache=True, parallel=True)
+def _onb_duff(n: np.ndarray, b1: np.ndarray, b2: np.ndarray, one) -> None:
+    for k in prange(n.shape[0]):
+        x, y, z = n[k, 0], n[k, 1], n[k, 2]
+        s = np.copysign(one, z)  # not sign(z), which is 0 at z = 0
+        a = -one / (s + z)
+        b = x * y * a
+        b1[k, 0], b1[k, 1], b1[k, 2] = one + s * x * x * a, s * b, -s * x
+        b2[k, 0], b2[k, 1], b2[k, 2] = b, s + y * y * a, -y
+
+
+def _as_normals(normals: np.ndarray, normalize: bool) -> np.ndarray:
+    arr = np.asarray(normals)
+    if arr.dtype not in (np.float32, np.float64):
+        arr = arr.astype(np.float64)
+    if arr.ndim == 1:
+        arr = arr[None, :]
+    if arr.ndim != 2 or arr.shape[1] != 3:
+        raise ValueError(f"normals: expected an (n, 3) array, got shape {np.shape(normals)}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError("normals: expected finite values, found NaN or infinity")
+    length = np.linalg.norm(arr.astype(np.float64), axis=1)
+    if np.any(length < 1e-12):
+        raise ValueError(f"normals: {int(np.sum(length < 1e-12))} zero-length vectors have no direction")
+    if normalize:
+        arr = (arr / length[:, None]).astype(arr.dtype)
+    else:
+        tolerance = 1e-3 if arr.dtype == np.float32 else 1e-6
+        worst = float(np.max(np.abs(length - 1.0)))
+        if worst > tolerance:
+            raise ValueError(
+                f"normals: expected unit vectors, found a length off by {worst:.3g}; pass normalize=True"
+            )
+    return np.ascontiguousarray(arr)
+
+
+def onb(
+    normals: np.ndarray, method: str = "duff", *, normalize: bool = False
+) -> tuple[np.ndarray, np.ndarray]:
+    """Tangent vectors completing each unit normal to a right-handed orthonormal basis.
+
+    Parameters
+    ----------
+    normals : (n, 3) or (3,) float32 or float64 array
+        Unit normals. The dtype is kept (other dtypes become float64).
+    method : {"duff", "frisvad"}
+        Duff et al. (2017), the default, or Frisvad (2012); see the module docstring
+        for why Frisvad's fails near n = (0, 0, -1).
+    normalize : bool
+        Normalise the input first instead of requiring unit length.
+
+    Returns
+    -------
+    b1, b2 : arrays shaped like ``normals``
+        With (b1, b2, n) orthonormal and b1 x b2 = n.
+
+    Raises
+    ------
+    ValueError
+        For non-finite, zero-length or (without ``normalize``) non-unit normals.
+    """
+    if method not in ONB_METHODS:
+        raise ValueError(f"method: expected one of {ONB_METHODS}, got {method!r}")
+    single = np.ndim(normals) == 1
+    n = _as_normals(normals, normalize)
+    b1 = np.empty_like(n)
+    b2 = np.empty_like(n)
+    one = n.dtype.type(1.0)
+    if method == "duff":
+        _onb_duff(n, b1, b2, one)
+    else:
+        _onb_frisvad(n, b1, b2, one, n.dtype.type(-0.9999999))
+    return (b1[0], b2[0]) if single else (b1, b2)
+
+
+def angle_weighted_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Unit vertex pseudo-normals: face normals weighted by the face's angle at the vertex.
+
+    Thürmer & Wüthrich (1998); Bærentzen & Aanæs (2005) show these make inside and
+    outside tests on a closed mesh consistent (the talk's choice of vertex normal).
+
+    Parameters
+    ----------
+    vertices : (n, 3) float array
+    faces : (m, 3) int array, counter-clockwise seen from outside
+
+    Returns
+    -------
+    (n, 3) float64 array; vertices used by no face get (0, 0, 0).
+    """
+    verts = np.asarray(vertices, dtype=np.float64)
+    tris = np.asarray(faces, dtype=np.int64)
+    tri = verts[tris]
+    face_n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    face_n /= np.maximum(np.linalg.norm(face_n, axis=1, keepdims=True), 1e-300)
+    normals = np.zeros_like(verts)
+    for k in range(3):
+        e1 = tri[:, (k + 1) % 3] - tri[:, k]
+        e2 = tri[:, (k + 2) % 3] - tri[:, k]
+        cos = np.einsum("ij,ij->i", e1, e2) / np.maximum(
+            np.linalg.norm(e1, axis=1) * np.linalg.norm(e2, axis=1), 1e-300
+        )
+        angle = np.arccos(np.clip(cos, -1.0, 1.0))
+        np.add.at(normals, tris[:, k], face_n * angle[:, None])
+    return normals / np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-300)
+
+
+def vertex_frames(
+    vertices: np.ndarray, faces: np.ndarray, method: str = "duff"
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per-vertex tangent frames (n, b1, b2) from angle-weighted pseudo-normals."""
+    n = angle_weighted_normals(vertices, faces)
+    b1, b2 = onb(n, method, normalize=True)
+    return n, b1, b2
+
+
+def face_frames(
+    vertices: np.ndarray, faces: np.ndarray, method: str = "duff"
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per-triangle tangent frames (n, b1, b2) from the triangles' geometric normals."""
+    verts = np.asarray(vertices, dtype=np.float64)
+    tri = verts[np.asarray(faces, dtype=np.int64)]
+    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    b1, b2 = onb(n, method, normalize=True)
+    return n / np.linalg.norm(n, axis=1, keepdims=True), b1, b2

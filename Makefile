@@ -29,6 +29,8 @@ bench: $(STAMP) llvm
 		{ $(BIN)/python -m pip install --quiet cython setuptools wheel && \
 		  $(BIN)/python -m pip install --quiet --no-build-isolation pyfastnoisesimd; } || \
 		echo "warning: pyfastnoisesimd did not install; bench noise runs without the Perlin peer" >&2
+	$(BIN)/python -c "import rlic" 2>/dev/null || $(BIN)/python -m pip install --quiet rlic || \
+		echo "warning: rlic did not install; bench lic runs without its peer" >&2
 	$(BIN)/printapp bench -o bench-out
 
 llvm:

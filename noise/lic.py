@@ -115,31 +115,24 @@ def _lic_per_pixel(u, v, texture, n_steps: np.int64, h: float, rk4: bool, hann: 
 
 
 @njit(cache=True)
-def _trace(u, v, texture, x0: float, y0: float, n_max: np.int64, h: float, rk4: bool, xs, ys, ts):
-    """Trace up to n_max steps each way from (x0, y0) into xs, ys, ts[n_max - back : n_max + fwd + 1].
+def _trace_side(
+    u, v, texture, x0: float, y0: float, n_max: np.int64, h: float, rk4: bool, xs, ys, ts, sign: int
+):
+    """Trace up to n_max steps from (x0, y0) one way; store sample k at index n_max + sign k.
 
-    Returns (back, fwd, back_stopped, fwd_stopped): steps taken each way, and whether
-    the streamline ended there (rather than reaching n_max).
+    Returns the number of steps taken and whether the streamline ended (rather than
+    reaching n_max).
     """
-    xs[n_max] = x0
-    ys[n_max] = y0
-    ts[n_max] = _sample(texture, x0, y0)
-    counts = np.zeros(2, dtype=np.int64)
-    stopped = np.zeros(2, dtype=np.bool_)
-    for side in range(2):
-        sign = 1.0 if side == 0 else -1.0
-        x, y = x0, y0
-        for k in range(1, n_max + 1):
-            x, y, ok = _step(u, v, x, y, sign * h, rk4)
-            if not ok:
-                stopped[side] = True
-                break
-            idx = n_max + k if side == 0 else n_max - k
-            xs[idx] = x
-            ys[idx] = y
-            ts[idx] = _sample(texture, x, y)
-            counts[side] = k
-    return counts[1], counts[0], stopped[1], stopped[0]
+    x, y = x0, y0
+    for k in range(1, n_max + 1):
+        x, y, ok = _step(u, v, x, y, sign * h, rk4)
+        if not ok:
+            return k - 1, True
+        idx = n_max + sign * k
+        xs[idx] = x
+        ys[idx] = y
+        ts[idx] = _sample(texture, x, y)
+    return n_max, False
 
 
 @njit(cache=True, parallel=True)
@@ -163,8 +156,12 @@ def _lic_fast_box(
             for i in range(nx):
                 if c[j, i] > 0:
                     continue
-                back, fwd, back_stop, fwd_stop = _trace(
-                    u, v, texture, float(i), float(j), n_max, h, rk4, xs, ys, ts
+                xs[n_max] = float(i)
+                ys[n_max] = float(j)
+                ts[n_max] = texture[j, i]
+                fwd, fwd_stop = _trace_side(u, v, texture, float(i), float(j), n_max, h, rk4, xs, ys, ts, 1)
+                back, back_stop = _trace_side(
+                    u, v, texture, float(i), float(j), n_max, h, rk4, xs, ys, ts, -1
                 )
                 lo = n_max - back
                 hi = n_max + fwd

@@ -186,8 +186,24 @@ def bench_noise(repeats: int) -> StageResult:
     return run(repeats)
 
 
+def bench_lic(repeats: int) -> StageResult:
+    """2-D LIC beside rlic (see printapp.bench_lic)."""
+    from printapp.bench_lic import bench_lic as run
+
+    return run(repeats)
+
+
+def bench_frames(repeats: int) -> StageResult:
+    """Orthonormal bases: speed and orthonormality (see printapp.bench_lic)."""
+    from printapp.bench_lic import bench_frames as run
+
+    return run(repeats)
+
+
 STAGES: dict[str, Callable[[int], StageResult]] = {
     "noise": bench_noise,
+    "frames": bench_frames,
+    "lic": bench_lic,
     "mesh": bench_mesh,
     "pipeline": bench_pipeline,
 }

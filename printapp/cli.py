@@ -120,16 +120,19 @@ class TextureKind(StrEnum):
     fbm = "fbm"
     turbulence = "turbulence"
     marble = "marble"
+    lic = "lic"
 
 
 @app.command()
 def texture(
-    kind: Annotated[TextureKind, typer.Argument(help="scn, fbm, turbulence or marble.")],
+    kind: Annotated[TextureKind, typer.Argument(help="scn, fbm, turbulence, marble or lic.")],
     out: Annotated[
         Path, typer.Option("--out", "-o", help="Output: .png (8-bit grey) or .npy (raw float64).")
     ],
     size: Annotated[int, typer.Option(min=2, max=8192, help="Image side (pixels).")] = 512,
-    cells: Annotated[float, typer.Option(min=1e-6, help="Noise cells across the image.")] = 8.0,
+    cells: Annotated[
+        float | None, typer.Option(min=1e-6, help="Noise cells across the image [8; lic: size/2].")
+    ] = None,
     seed: Annotated[int, typer.Option(min=0, help="Random seed.")] = 0,
     impulses: Annotated[int, typer.Option(min=1, max=1024, help="Impulses per cell N.")] = 30,
     cell_seed: Annotated[str, typer.Option(help="'hash' or the talk's 'frisvad'.")] = "hash",
@@ -142,11 +145,17 @@ def texture(
         float, typer.Option("--A", help="marble: contrast A in 0.5 (A noise(B p) + 1).")
     ] = 1.0,
     frequency: Annotated[float, typer.Option("--B", help="marble: frequency B.")] = 1.0,
+    field: Annotated[
+        str, typer.Option(help="lic: 'constant:ANGLE' (degrees), 'swirl' or 'image:FILE' (angle map).")
+    ] = "swirl",
+    length: Annotated[float, typer.Option(help="lic: streamline half-length (pixels).")] = 15.0,
 ) -> None:
     """Write a texture image: sparse convolution noise, fBm, turbulence or the talk's marble mapping.
 
-    PNG images of scn, fbm and turbulence are scaled from their minimum to their maximum;
-    marble is 0.5 (A noise(B p) + 1) clipped to [0, 1]. .npy files hold the raw values.
+    PNG images of scn, fbm, turbulence and lic are scaled from their minimum to their
+    maximum; marble is 0.5 (A noise(B p) + 1) clipped to [0, 1]. .npy files hold the raw
+    values. lic convolves sparse convolution noise (2-pixel features unless --cells says
+    otherwise) along the streamlines of --field.
     """
     import numpy as np
 
@@ -156,6 +165,8 @@ def texture(
     suffix = out.suffix.lower()
     if suffix not in (".png", ".npy"):
         raise _fail(PrintappError(f"{out}: expected an output file ending in .png or .npy"))
+    if cells is None:
+        cells = size / 2.0 if kind is TextureKind.lic else 8.0
     axis = (np.arange(size) + 0.5) * (cells / size)
     common = {"seed": seed, "impulses": impulses, "cell_seed": cell_seed}
     try:
@@ -165,6 +176,13 @@ def texture(
             values = noise.fbm_grid(axis, axis, octaves=octaves, lacunarity=lacunarity, H=hurst, **common)
         elif kind is TextureKind.turbulence:
             values = noise.turbulence_grid(axis, axis, low=low, high=high, **common)
+        elif kind is TextureKind.lic:
+            from noise.lic import lic2d
+            from printapp.fields import field_on_grid
+
+            pixels = np.arange(size, dtype=float)
+            u, v = field_on_grid(field, pixels, pixels)
+            values = lic2d(u, v, noise.sparse_convolution_grid(axis, axis, **common), length=length)
         else:
             if not (np.isfinite(contrast) and np.isfinite(frequency)):
                 raise ValueError("A, B: expected finite numbers")
@@ -173,7 +191,11 @@ def texture(
             )
     except ValueError as exc:
         name, _, rest = str(exc).partition(":")
+        if name.startswith("expected"):  # from the field spec parser
+            raise _fail(PrintappError(f"--field: {exc}")) from None
         raise _fail(PrintappError(f"--{name.replace('_', '-')}:{rest}")) from None
+    except PrintappError as exc:
+        raise _fail(exc) from None
     try:
         if suffix == ".npy":
             import io

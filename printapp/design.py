@@ -82,7 +82,7 @@ class MeshBase(_Section):
 class Texture(_Section):
     """The texture field: which noise, at which scale, with which seed."""
 
-    kind: Literal["scn", "fbm", "turbulence"] = "fbm"
+    kind: Literal["scn", "fbm", "turbulence", "lic"] = "fbm"
     feature_size_mm: Annotated[float, at.Gt(0.0), at.Le(1000.0)] = 2.0
     """Size of one noise lattice cell (mm): the base octave's features are about this big."""
     seed: Annotated[int, at.Ge(0), at.Lt(2**63)] = 0
@@ -97,6 +97,17 @@ class Texture(_Section):
     """Elongation of the features along ``angle``: 1 is isotropic, 8 looks brushed."""
     angle_rad: Annotated[float, at.Ge(-2 * math.pi), at.Le(2 * math.pi)] = 0.0
     """Direction of elongation in the xy plane, from +x towards +y."""
+    field: str = "constant:0"
+    """lic: the direction field, 'constant:ANGLE' (degrees), 'swirl' or 'image:FILE'."""
+    length_mm: Annotated[float, at.Gt(0.0), at.Le(1000.0)] = 2.0
+    """lic: half-length of the streamlines the noise is averaged along (mm)."""
+
+    @field_validator("field")
+    @classmethod
+    def _field_spec(cls, spec: str) -> str:
+        from printapp.fields import check_field_spec
+
+        return check_field_spec(spec)
 
     @model_validator(mode="after")
     def _octave_range(self) -> Texture:
@@ -471,6 +482,10 @@ def load_design(path: str | Path) -> Design:
     except tomllib.TOMLDecodeError as exc:
         raise DesignError(f"{path}: TOML syntax error: {exc}") from None
     design = design_from_dict(data, str(path))
+    kind, _, image = design.texture.field.partition(":")
+    if kind == "image" and not Path(image).is_absolute():
+        field = f"image:{path.parent / image}"
+        design = design.model_copy(update={"texture": design.texture.model_copy(update={"field": field})})
     if isinstance(design.base, MeshBase):
         mesh_path = Path(design.base.path)
         if not mesh_path.is_absolute():

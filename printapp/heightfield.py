@@ -65,6 +65,16 @@ class HeightField:
         )
 
     def slopes(self) -> tuple[np.ndarray, np.ndarray]:
-        """Forward-difference slopes dh/dx and dh/dy (dimensionless) on the cell grid."""
+        """Slopes dh/dx and dh/dy (dimensionless) at the interior samples, by central differences.
+
+        Both components are taken at the same sample. (Forward differences along x
+        and y sit half a pixel apart, and the triangles of a fixed-diagonal split
+        favour one diagonal; for detail a few pixels across at oblique angles, both
+        mix the two directions and understate anisotropy.)
+        """
         h = self.heights_mm
-        return np.diff(h, axis=1)[:-1, :] / self.pitch_x_mm, np.diff(h, axis=0)[:, :-1] / self.pitch_y_mm
+        if min(h.shape) < 3:
+            raise ValueError(f"heights_mm: slopes need at least 3x3 samples, got shape {h.shape}")
+        sx = (h[1:-1, 2:] - h[1:-1, :-2]) / (2.0 * self.pitch_x_mm)
+        sy = (h[2:, 1:-1] - h[:-2, 1:-1]) / (2.0 * self.pitch_y_mm)
+        return sx, sy

@@ -8,6 +8,7 @@ import numpy as np
 
 import noise
 from printapp.design import Design, Texture, TileBase
+from printapp.errors import DesignError
 from printapp.heightfield import HeightField
 
 
@@ -30,6 +31,11 @@ def evaluate_texture(points_mm: np.ndarray, texture: Texture, pitch_mm: float | 
     ``pitch_mm`` (the sampling pitch) drops fBm/turbulence octaves finer than two
     samples: a printer cannot reproduce them, and sampling them would alias.
     """
+    if texture.kind == "lic":
+        raise DesignError(
+            'texture.kind = "lic" needs a tile base: '
+            "line integral convolution on meshes is not implemented yet"
+        )
     pts = to_noise_units(points_mm, texture)
     pitch = None if pitch_mm is None else pitch_mm / texture.feature_size_mm
     common = {"seed": texture.seed, "impulses": texture.impulses, "cell_seed": texture.cell_seed}
@@ -70,6 +76,19 @@ def evaluate_texture_grid(
     Uses the noise package's grid fast path when the texture's axes line up with the
     grid (no stretch, or a stretch along x); otherwise evaluates the points one by one.
     """
+    if texture.kind == "lic":
+        from noise.lic import lic2d
+        from printapp.fields import field_on_grid
+
+        noise_values = noise.sparse_convolution_grid(
+            x_mm / texture.feature_size_mm,
+            y_mm / texture.feature_size_mm,
+            seed=texture.seed,
+            impulses=texture.impulses,
+            cell_seed=texture.cell_seed,
+        )
+        u, v = field_on_grid(texture.field, x_mm, y_mm)
+        return lic2d(u, v, noise_values, length=max(texture.length_mm / pitch_mm, 1.0))
     if texture.stretch == 1.0 or texture.angle_rad == 0.0:
         xs = x_mm / (texture.feature_size_mm * texture.stretch)
         ys = y_mm / texture.feature_size_mm

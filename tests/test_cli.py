@@ -274,3 +274,51 @@ def test_every_example_builds_and_passes_verification(tmp_path, example):
     assert outcome.passed, outcome.reasons
     assert outcome.manifest["watertight"] and outcome.manifest["manifold"]
     assert (tmp_path / "model.stl").exists()
+
+
+def test_texture_lic_and_field_errors(tmp_path):
+    out = tmp_path / "lic.png"
+    result = printapp("texture", "lic", "--field", "constant:30", "--size", "64", "--length", "8", "-o", out)
+    assert result.returncode == 0, result.stderr
+    assert np.asarray(Image.open(out)).std() > 10
+    bad = printapp("texture", "lic", "--field", "spiral", "-o", tmp_path / "x.png")
+    assert bad.returncode == 2 and "--field: expected 'constant:ANGLE', 'swirl' or 'image:FILE'" in bad.stderr
+    missing = printapp("texture", "lic", "--field", "image:none.png", "-o", tmp_path / "x.png")
+    assert missing.returncode == 2 and "no such field image" in missing.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["lic.png"]
+
+
+def test_lic_design_on_a_mesh_is_refused_clearly(tmp_path):
+    mesh = (ROOT / "data" / "meshes" / "featuretype.STL").as_posix()
+    result, out = run_bad(tmp_path, f'[base]\npath = "{mesh}"\n[texture]\nkind = "lic"\n')
+    assert result.returncode == 2
+    assert 'texture.kind = "lic" needs a tile base' in result.stderr
+
+
+def test_lic_streaks_follow_the_field_on_a_tile():
+    from printapp.design import design_from_dict
+    from printapp.texture import relief_heightfield
+    from render.microfacet import slope_roughness
+
+    design = design_from_dict(
+        {
+            "base": {"width_mm": 8.0, "depth_mm": 8.0},
+            "texture": {"kind": "lic", "field": "constant:30", "feature_size_mm": 0.2, "length_mm": 1.0},
+            "relief": {"amplitude_um": 100},
+        }
+    )
+    rough = slope_roughness(*relief_heightfield(design).slopes())
+    # slopes are steepest across the streaks: the major roughness axis is at 30 + 90 degrees
+    assert np.degrees(rough.major_azimuth_rad) == pytest.approx(120.0, abs=6.0)
+    assert rough.anisotropy > 2.0
+
+
+def test_bench_frames(tmp_path):
+    result = printapp("bench", "frames", "--repeats", "1", "-o", tmp_path)
+    assert result.returncode == 0, result.stderr
+    rows = {
+        (r["method"], r["dtype"]): r
+        for r in json.loads((tmp_path / "bench.json").read_text())["frames"]["rows"]
+    }
+    assert rows[("duff", "float32")]["max_error"] < 1e-6
+    assert rows[("frisvad", "float32")]["max_error"] > 1e-3

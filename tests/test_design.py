@@ -26,7 +26,10 @@ def error_of(data) -> str:
         ({"texture": {"octaves": 2.5}}, "texture.octaves: expected an integer, got 2.5"),
         ({"texture": {"lacunarity": 1.0}}, "texture.lacunarity: expected a value in (1, 8], got 1.0"),
         ({"texture": {"H": 1.5}}, "texture.H: expected a value in (0, 1], got 1.5"),
-        ({"texture": {"kind": "perlin"}}, "texture.kind: expected one of 'scn', 'fbm' or 'turbulence'"),
+        (
+            {"texture": {"kind": "perlin"}},
+            "texture.kind: expected one of 'scn', 'fbm', 'turbulence' or 'lic'",
+        ),
         ({"texture": {"low": 4, "high": 2}}, "'high' (2) must be at least 'low' (4)"),
         ({"texture": "fbm"}, "texture: expected a table, got 'fbm'"),
         ({"relief": {"amplitude_um": -3}}, "relief.amplitude_um: expected a value in (0, 50000], got -3"),
@@ -106,3 +109,13 @@ def test_examples_all_validate():
     assert len(examples) >= 3
     for path in examples:
         load_design(path)
+
+
+def test_lic_field_specs(tmp_path):
+    assert "expected 'constant:ANGLE' with ANGLE in degrees" in error_of(
+        {"texture": {"field": "constant:thirty"}}
+    )
+    assert "expected 'constant:ANGLE', 'swirl' or 'image:FILE'" in error_of({"texture": {"field": "spiral"}})
+    path = tmp_path / "d.toml"
+    path.write_text('[texture]\nkind = "lic"\nfield = "image:angles.png"\n')
+    assert load_design(path).texture.field == f"image:{tmp_path / 'angles.png'}"

@@ -1,7 +1,14 @@
-"""Direction fields for line integral convolution on tiles and images, from a short spec.
+"""Direction fields for line integral convolution, from a short spec.
 
-``constant:ANGLE`` (degrees from +x towards +y), ``swirl`` (circles about the centre),
-``image:FILE`` (an angle map: grey 0..255 is 0..180 degrees, an orientation field).
+On tiles and images: ``constant:ANGLE`` (degrees from +x towards +y), ``swirl``
+(circles about the centre), ``image:FILE`` (an angle map: grey 0..255 is 0..180
+degrees, an orientation field).
+
+On meshes: ``constant:ANGLE`` (that horizontal world direction), ``swirl`` (circles
+about the vertical axis through the mesh's centre), ``direction:X,Y,Z`` (a world
+direction), ``axis:X,Y,Z`` (circles about that axis through the centre),
+``curvature:max`` or ``curvature:min`` (principal curvature directions). Each is
+projected into the surface's tangent planes.
 """
 
 from __future__ import annotations
@@ -13,11 +20,36 @@ import numpy as np
 
 from printapp.errors import DesignError
 
+_EXPECTED = (
+    "expected 'constant:ANGLE', 'swirl' or 'image:FILE' (tiles and meshes), "
+    "or 'direction:X,Y,Z', 'axis:X,Y,Z', 'curvature:max|min' (meshes)"
+)
+
+
+def _vector(arg: str, spec: str) -> np.ndarray:
+    try:
+        values = np.array([float(x) for x in arg.split(",")])
+    except ValueError:
+        raise ValueError(f"expected three comma-separated numbers in {spec!r}") from None
+    if values.shape != (3,) or not np.all(np.isfinite(values)) or not np.any(values):
+        raise ValueError(f"expected a finite, non-zero X,Y,Z in {spec!r}")
+    return values
+
+
+def is_tile_field(spec: str) -> bool:
+    """Whether the spec also works on a flat tile (constant, swirl, image)."""
+    return spec.partition(":")[0] in ("constant", "swirl", "image")
+
 
 def check_field_spec(spec: str) -> str:
     """Validate a field spec's form (not the file's content); return it unchanged."""
     kind, _, arg = spec.partition(":")
     if kind == "swirl" and not arg:
+        return spec
+    if kind in ("direction", "axis"):
+        _vector(arg, spec)
+        return spec
+    if kind == "curvature" and arg in ("max", "min"):
         return spec
     if kind == "constant":
         try:
@@ -29,7 +61,7 @@ def check_field_spec(spec: str) -> str:
         return spec
     if kind == "image" and arg:
         return spec
-    raise ValueError(f"expected 'constant:ANGLE', 'swirl' or 'image:FILE', got {spec!r}")
+    raise ValueError(f"{_EXPECTED}, got {spec!r}")
 
 
 def field_on_grid(
@@ -43,6 +75,10 @@ def field_on_grid(
         If an image field's file is missing or unreadable.
     """
     check_field_spec(spec)
+    if not is_tile_field(spec):
+        raise DesignError(
+            f"field {spec!r} needs a mesh base; on tiles use 'constant:ANGLE', 'swirl' or 'image:FILE'"
+        )
     kind, _, arg = spec.partition(":")
     xx, yy = np.meshgrid(x, y)
     if kind == "constant":
@@ -69,3 +105,44 @@ def field_on_grid(
     # Image rows run downwards; our y runs upwards.
     angle = grey[::-1] / 255.0 * math.pi
     return np.cos(angle), np.sin(angle)
+
+
+def field_on_mesh(spec: str, vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Tangent vectors per vertex (zero where the field vanishes) for the mesh field ``spec``."""
+    from noise.surface import field_constant, field_principal_curvature, field_rotation
+
+    check_field_spec(spec)
+    kind, _, arg = spec.partition(":")
+    centre = 0.5 * (vertices.min(axis=0) + vertices.max(axis=0))
+    if kind == "constant":
+        a = math.radians(float(arg))
+        return field_constant(vertices, faces, [math.cos(a), math.sin(a), 0.0])
+    if kind == "direction":
+        return field_constant(vertices, faces, _vector(arg, spec))
+    if kind == "swirl":
+        return field_rotation(vertices, faces, [0.0, 0.0, 1.0], centre)
+    if kind == "axis":
+        return field_rotation(vertices, faces, _vector(arg, spec), centre)
+    if kind == "curvature":
+        return field_principal_curvature(vertices, faces, arg)
+    raise DesignError(f"field {spec!r}: image fields need a UV layout, which meshes do not have here yet")
+
+
+def surface_lic_values(mesh, texture, step_mm: float) -> np.ndarray:
+    """The design texture's surface LIC at each vertex of ``mesh`` (a trimesh.Trimesh)."""
+    from noise.surface import lic_surface
+
+    vertices = np.asarray(mesh.vertices)
+    faces = np.asarray(mesh.faces)
+    field = field_on_mesh(texture.field, vertices, faces)
+    return lic_surface(
+        vertices,
+        faces,
+        field,
+        length=texture.length_mm,
+        step=step_mm,
+        noise_scale=texture.feature_size_mm,
+        seed=texture.seed,
+        impulses=texture.impulses,
+        cell_seed=texture.cell_seed,
+    )

@@ -20,6 +20,7 @@ import trimesh
 
 from printapp.design import Design, MeshBase, TileBase, load_design, resolved_toml
 from printapp.exporters import OutputFolder, stl_bytes, threemf_bytes
+from printapp.fields import is_tile_field, surface_lic_values
 from printapp.heightfield import HeightField
 from printapp.mesh import (
     SolidCheck,
@@ -30,7 +31,12 @@ from printapp.mesh import (
     slab_from_heightfield,
 )
 from printapp.progress import StageTimer
-from printapp.texture import evaluate_texture, normalise_peak_to_valley, relief_heightfield
+from printapp.texture import (
+    evaluate_texture,
+    evaluate_texture_grid,
+    normalise_peak_to_valley,
+    relief_heightfield,
+)
 from render.microfacet import SlopeRoughness, slope_roughness
 
 DEFAULT_DESIGN = files("printapp").joinpath("data/default_design.toml")
@@ -66,19 +72,30 @@ def build_relief(design: Design) -> Relief:
         return Relief(mesh=slab_from_heightfield(field_, design.base.thickness_mm), patch=field_)
     assert isinstance(design.base, MeshBase)
     base = load_closed_mesh(design.base.path, design.base.scale)
-    # Four vertices per base-octave feature along an edge resolve the relief's shape;
-    # finer than the printer's pixel is wasted.
-    edge = max(texture.feature_size_mm / 4.0, pitch)
-    refined = refine_to_edge_length(base, edge)
-    raw = evaluate_texture(np.asarray(refined.vertices), texture, pitch_mm=edge)
+    if texture.kind == "lic":
+        # The smeared noise varies on the scale of its features across the streamlines:
+        # two vertices per feature resolve it.
+        edge = max(texture.feature_size_mm / 2.0, pitch)
+        refined = refine_to_edge_length(base, edge)
+        raw = surface_lic_values(refined, texture, step_mm=pitch)
+    else:
+        # Four vertices per base-octave feature along an edge resolve the relief's shape;
+        # finer than the printer's pixel is wasted.
+        edge = max(texture.feature_size_mm / 4.0, pitch)
+        refined = refine_to_edge_length(base, edge)
+        raw = evaluate_texture(np.asarray(refined.vertices), texture, pitch_mm=edge)
     lo, hi = float(raw.min()), float(raw.max())
     mesh = displace_along_normals(refined, normalise_peak_to_valley(raw, design.relief.amplitude_mm))
-    # The patch uses the same value-to-height scale as the mesh, so its slopes are the mesh's.
-    side = _PATCH_FEATURES * texture.feature_size_mm
-    n = max(2, min(1024, round(side / pitch) + 1))
+    # A flat patch of the same texture on the mesh's value-to-height scale, so that its
+    # slopes are the mesh's (for a mesh-only lic field, a constant field: the same slope
+    # statistics up to a rotation).
+    side = _PATCH_FEATURES * max(texture.feature_size_mm, texture.length_mm if texture.kind == "lic" else 0.0)
+    n = max(3, min(1024, round(side / pitch) + 1))
     step = side / (n - 1)
-    xx, yy = np.meshgrid(np.arange(n) * step, np.arange(n) * step)
-    values = evaluate_texture(np.column_stack([xx.ravel(), yy.ravel()]), texture, pitch_mm=step).reshape(n, n)
+    patch_texture = texture
+    if texture.kind == "lic" and not is_tile_field(texture.field):
+        patch_texture = texture.model_copy(update={"field": "constant:0"})
+    values = evaluate_texture_grid(np.arange(n) * step, np.arange(n) * step, patch_texture, step)
     scale = design.relief.amplitude_mm / (hi - lo) if hi > lo else 0.0
     return Relief(mesh=mesh, patch=HeightField((values - lo) * scale, step, step))
 

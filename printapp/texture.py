@@ -8,7 +8,6 @@ import numpy as np
 
 import noise
 from printapp.design import Design, Texture, TileBase
-from printapp.errors import DesignError
 from printapp.heightfield import HeightField
 
 
@@ -32,10 +31,7 @@ def evaluate_texture(points_mm: np.ndarray, texture: Texture, pitch_mm: float | 
     samples: a printer cannot reproduce them, and sampling them would alias.
     """
     if texture.kind == "lic":
-        raise DesignError(
-            'texture.kind = "lic" needs a tile base: '
-            "line integral convolution on meshes is not implemented yet"
-        )
+        raise ValueError("lic textures are evaluated on grids or meshes, not at scattered points")
     pts = to_noise_units(points_mm, texture)
     pitch = None if pitch_mm is None else pitch_mm / texture.feature_size_mm
     common = {"seed": texture.seed, "impulses": texture.impulses, "cell_seed": texture.cell_seed}

@@ -283,16 +283,23 @@ def test_texture_lic_and_field_errors(tmp_path):
     assert np.asarray(Image.open(out)).std() > 10
     bad = printapp("texture", "lic", "--field", "spiral", "-o", tmp_path / "x.png")
     assert bad.returncode == 2 and "--field: expected 'constant:ANGLE', 'swirl' or 'image:FILE'" in bad.stderr
+    mesh_only = printapp("texture", "lic", "--field", "curvature:max", "-o", tmp_path / "x.png")
+    assert mesh_only.returncode == 2 and "needs a mesh base" in mesh_only.stderr
     missing = printapp("texture", "lic", "--field", "image:none.png", "-o", tmp_path / "x.png")
     assert missing.returncode == 2 and "no such field image" in missing.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == ["lic.png"]
 
 
-def test_lic_design_on_a_mesh_is_refused_clearly(tmp_path):
+def test_lic_fields_that_do_not_fit_the_base_are_refused_clearly(tmp_path):
     mesh = (ROOT / "data" / "meshes" / "featuretype.STL").as_posix()
-    result, out = run_bad(tmp_path, f'[base]\npath = "{mesh}"\n[texture]\nkind = "lic"\n')
+    result, _ = run_bad(
+        tmp_path, f'[base]\npath = "{mesh}"\n[texture]\nkind = "lic"\nfield = "image:a.png"\n'
+    )
     assert result.returncode == 2
-    assert 'texture.kind = "lic" needs a tile base' in result.stderr
+    assert "image fields need a UV layout" in result.stderr
+    result, _ = run_bad(tmp_path, '[texture]\nkind = "lic"\nfield = "curvature:max"\n')
+    assert result.returncode == 2
+    assert "needs a mesh base" in result.stderr
 
 
 def test_lic_streaks_follow_the_field_on_a_tile():

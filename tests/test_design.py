@@ -116,6 +116,8 @@ def test_lic_field_specs(tmp_path):
         {"texture": {"field": "constant:thirty"}}
     )
     assert "expected 'constant:ANGLE', 'swirl' or 'image:FILE'" in error_of({"texture": {"field": "spiral"}})
+    assert "expected a finite, non-zero X,Y,Z" in error_of({"texture": {"field": "axis:0,0,0"}})
+    assert "three comma-separated numbers" in error_of({"texture": {"field": "direction:1,x,0"}})
     path = tmp_path / "d.toml"
     path.write_text('[texture]\nkind = "lic"\nfield = "image:angles.png"\n')
     assert load_design(path).texture.field == f"image:{tmp_path / 'angles.png'}"

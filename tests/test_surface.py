@@ -1,0 +1,114 @@
+"""Tangent fields on meshes and line integral convolution on the surface."""
+
+import numpy as np
+import pytest
+import trimesh
+
+from noise.surface import (
+    face_adjacency,
+    field_constant,
+    field_principal_curvature,
+    field_rotation,
+    lic_surface,
+)
+
+
+@pytest.fixture(scope="module")
+def sphere():
+    m = trimesh.creation.icosphere(subdivisions=5, radius=10.0)
+    return np.asarray(m.vertices), np.asarray(m.faces)
+
+
+def test_face_adjacency_pairs_every_edge_of_a_closed_mesh(sphere):
+    _, faces = sphere
+    nbr = face_adjacency(faces)
+    assert np.all(nbr >= 0)
+    for f in range(0, len(faces), 997):
+        for i in range(3):
+            g = nbr[f, i]
+            shared = {faces[f, (i + 1) % 3], faces[f, (i + 2) % 3]}
+            assert shared <= set(faces[g])
+            assert f in nbr[g]
+
+
+def test_fields_are_tangent_unit_vectors(sphere):
+    vertices, faces = sphere
+    normals = vertices / np.linalg.norm(vertices, axis=1, keepdims=True)
+    for field in (
+        field_constant(vertices, faces, [1.0, 0.0, 0.0]),
+        field_rotation(vertices, faces, [0.0, 0.0, 1.0], [0.0, 0.0, 0.0]),
+    ):
+        length = np.linalg.norm(field, axis=1)
+        live = length > 0
+        assert live.mean() > 0.99
+        np.testing.assert_allclose(length[live], 1.0, atol=1e-12)
+        assert np.abs(np.einsum("ij,ij->i", field[live], normals[live])).max() < 0.02
+
+
+def test_constant_field_vanishes_at_two_points_on_a_sphere(sphere):
+    vertices, faces = sphere
+    field = field_constant(vertices, faces, [1.0, 0.0, 0.0])
+    dead = np.linalg.norm(field, axis=1) == 0
+    # the hairy-ball theorem's two zeros, where the direction is the normal: (+-10, 0, 0)
+    assert dead.sum() == 2
+    np.testing.assert_allclose(np.abs(vertices[dead, 0]), 10.0)
+
+
+def test_principal_directions_on_a_cylinder():
+    cylinder = trimesh.creation.cylinder(radius=5, height=20, sections=64).subdivide().subdivide()
+    vertices, faces = np.asarray(cylinder.vertices), np.asarray(cylinder.faces)
+    side = np.abs(vertices[:, 2]) < 8
+    around = field_principal_curvature(vertices, faces, "max")
+    along = field_principal_curvature(vertices, faces, "min")
+    live = side & (np.linalg.norm(around, axis=1) > 0) & (np.linalg.norm(along, axis=1) > 0)
+    assert live.sum() > 0.99 * side.sum()
+    assert np.abs(around[live, 2]).max() < 0.05  # around the cylinder
+    assert np.abs(along[live, 2]).min() > 0.99  # along its axis
+
+
+def neighbour_differences(vertices, faces, values, field):
+    """Mean |value difference| to the 1-ring neighbour most along, and most across, the field."""
+    edges = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
+    d = vertices[edges[:, 1]] - vertices[edges[:, 0]]
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    align = np.abs(np.einsum("ij,ij->i", d, field[edges[:, 0]]))
+    diff = np.abs(values[edges[:, 1]] - values[edges[:, 0]])
+    live = np.linalg.norm(field[edges[:, 0]], axis=1) > 0
+    return diff[live & (align > 0.9)].mean(), diff[live & (align < 0.3)].mean()
+
+
+def test_surface_lic_streaks_follow_the_field(sphere):
+    vertices, faces = sphere
+    field = field_rotation(vertices, faces, [0.0, 0.0, 1.0], [0.0, 0.0, 0.0])
+    # noise features of about three edges, streamlines eight edges each way
+    values = lic_surface(vertices, faces, field, length=3.0, step=0.1, noise_scale=1.0)
+    assert np.all(np.isfinite(values))
+    along, across = neighbour_differences(vertices, faces, values, field)
+    assert along < 0.6 * across  # measured 0.46
+    plain = lic_surface(vertices, faces, np.zeros_like(vertices), length=3.0, step=0.1, noise_scale=1.0)
+    along, across = neighbour_differences(vertices, faces, plain, field)
+    assert along > 0.9 * across  # the control: unsmeared noise has no preferred direction
+    assert values.std() < 0.7 * plain.std()  # averaging along streamlines smooths the noise
+
+
+def test_surface_lic_with_a_line_field_and_critical_points(sphere):
+    vertices, faces = sphere
+    for field in (
+        field_constant(vertices, faces, [1.0, 0.0, 0.0]),  # vanishes at two points
+        -field_rotation(vertices, faces, [0.0, 0.0, 1.0], [0.0, 0.0, 0.0]) * np.sign(vertices[:, :1] + 0.1),
+    ):
+        values = lic_surface(vertices, faces, field, length=3.0, step=0.2, noise_scale=1.0, seed=3)
+        assert np.all(np.isfinite(values))
+    # the second field flips sign across x = -0.1; as a line field it still streaks along circles
+    along, across = neighbour_differences(vertices, faces, values, field)
+    assert along < 0.6 * across
+
+
+def test_surface_lic_bad_input(sphere):
+    vertices, faces = sphere
+    with pytest.raises(ValueError, match="^field: expected shape"):
+        lic_surface(vertices, faces, np.zeros((3, 3)), length=1.0, step=0.1)
+    with pytest.raises(ValueError, match="^step: expected a positive number"):
+        lic_surface(vertices, faces, np.zeros_like(vertices), length=1.0, step=0.0)
+    with pytest.raises(ValueError, match="^vertices, field: expected finite"):
+        lic_surface(vertices, faces, np.full_like(vertices, np.nan), length=1.0, step=0.1)

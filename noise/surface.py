@@ -142,6 +142,74 @@ def _two_ring(n_vertices: int, faces: np.ndarray) -> tuple[np.ndarray, np.ndarra
     return two.indptr.astype(np.int64), two.indices.astype(np.int64)
 
 
+def field_from_angle_map(
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    parent_face: np.ndarray,
+    base_vertices: np.ndarray,
+    base_faces: np.ndarray,
+    base_face_uv: np.ndarray,
+    angles_rad: np.ndarray,
+) -> np.ndarray:
+    """A line field from an angle map laid on the surface through a UV layout.
+
+    Each vertex of a refined mesh lies in a triangle of the base mesh (``parent_face``
+    of one of its triangles); its UV position is interpolated from that triangle's
+    corner UVs (``base_face_uv``, per face so that seams are respected), the angle map
+    is sampled there (bilinear; row 0 at v = 0, column 0 at u = 0), and the angle's UV
+    direction (cos a, sin a) is mapped to 3-D by the triangle's Jacobian dP/d(u, v).
+
+    Returns
+    -------
+    (n, 3) float64 array of unit tangents (zero where the UV map is degenerate).
+    """
+    verts = np.asarray(vertices, dtype=np.float64)
+    tris = np.asarray(faces, dtype=np.int64)
+    parents = np.asarray(parent_face, dtype=np.int64)
+    if parents.shape != (tris.shape[0],):
+        raise ValueError(f"parent_face: expected one base face per face, got shape {parents.shape}")
+    angles = np.asarray(angles_rad, dtype=np.float64)
+    if angles.ndim != 2 or not np.all(np.isfinite(angles)):
+        raise ValueError("angles_rad: expected a finite 2-D array")
+    owner = np.zeros(verts.shape[0], dtype=np.int64)
+    owner[tris.ravel()] = np.repeat(parents, 3)
+    bv = np.asarray(base_vertices, dtype=np.float64)[np.asarray(base_faces, dtype=np.int64)[owner]]
+    buv = np.asarray(base_face_uv, dtype=np.float64)[owner]
+    e1, e2 = bv[:, 1] - bv[:, 0], bv[:, 2] - bv[:, 0]
+    w = verts - bv[:, 0]
+    d00, d01, d11 = (e1 * e1).sum(1), (e1 * e2).sum(1), (e2 * e2).sum(1)
+    d20, d21 = (w * e1).sum(1), (w * e2).sum(1)
+    den = np.maximum(d00 * d11 - d01 * d01, 1e-300)
+    l1 = (d11 * d20 - d01 * d21) / den
+    l2 = (d00 * d21 - d01 * d20) / den
+    uv = buv[:, 0] + l1[:, None] * (buv[:, 1] - buv[:, 0]) + l2[:, None] * (buv[:, 2] - buv[:, 0])
+    h, wdt = angles.shape
+    x = np.clip(uv[:, 0] * (wdt - 1), 0, wdt - 1)
+    y = np.clip(uv[:, 1] * (h - 1), 0, h - 1)
+    i0, j0 = np.minimum(x.astype(int), max(wdt - 2, 0)), np.minimum(y.astype(int), max(h - 2, 0))
+    i1, j1 = np.minimum(i0 + 1, wdt - 1), np.minimum(j0 + 1, h - 1)
+    fx, fy = x - i0, y - j0
+    # Orientations, not angles, are interpolated: average the doubled-angle vectors.
+    c2, s2 = np.cos(2 * angles), np.sin(2 * angles)
+
+    def bilinear(img: np.ndarray) -> np.ndarray:
+        top = img[j0, i0] * (1 - fx) + img[j0, i1] * fx
+        bottom = img[j1, i0] * (1 - fx) + img[j1, i1] * fx
+        return top * (1 - fy) + bottom * fy
+
+    a = 0.5 * np.arctan2(bilinear(s2), bilinear(c2))
+    # Jacobian of the base triangle: [e1 e2] = J [duv1 duv2]  =>  J = [e1 e2] inv([duv1 duv2])
+    duv1, duv2 = buv[:, 1] - buv[:, 0], buv[:, 2] - buv[:, 0]
+    det = duv1[:, 0] * duv2[:, 1] - duv1[:, 1] * duv2[:, 0]
+    ok = np.abs(det) > 1e-15
+    det = np.where(ok, det, 1.0)
+    dp_du = (e1 * duv2[:, 1:2] - e2 * duv1[:, 1:2]) / det[:, None]
+    dp_dv = (e2 * duv1[:, 0:1] - e1 * duv2[:, 0:1]) / det[:, None]
+    t = dp_du * np.cos(a)[:, None] + dp_dv * np.sin(a)[:, None]
+    n = angle_weighted_normals(verts, tris)
+    return _project_to_tangent(np.where(ok[:, None], t, 0.0), n)
+
+
 # ---------------------------------------------------------------------------------------------
 # Streamlines on the surface
 

@@ -107,10 +107,34 @@ def field_on_grid(
     return np.cos(angle), np.sin(angle)
 
 
-def field_on_mesh(spec: str, vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """Tangent vectors per vertex (zero where the field vanishes) for the mesh field ``spec``."""
-    from noise.surface import field_constant, field_principal_curvature, field_rotation
+def _angle_map(path: Path, size: int = 1024) -> np.ndarray:
+    """An angle map file as radians (grey 0..255 -> 0..pi), row 0 at the bottom (v = 0)."""
+    from PIL import Image, UnidentifiedImageError
 
+    try:
+        with Image.open(path) as image:
+            grey = image.convert("L")
+            if max(grey.size) > size:
+                grey = grey.resize((size, size), Image.Resampling.BILINEAR)
+            values = np.asarray(grey, dtype=float)
+    except FileNotFoundError:
+        raise DesignError(f"{path}: no such field image") from None
+    except (UnidentifiedImageError, OSError) as exc:
+        raise DesignError(f"{path}: cannot read the field image ({exc})") from None
+    return values[::-1] / 255.0 * math.pi
+
+
+def field_on_mesh(spec: str, mesh, base=None) -> np.ndarray:
+    """Tangent vectors per vertex of ``mesh`` (zero where the field vanishes) for ``spec``.
+
+    ``base`` is the unrefined mesh that ``mesh`` was refined from (its faces' parents in
+    ``mesh.metadata["parent_face"]``): image fields are laid on it through an xatlas UV
+    layout, computed on the small base mesh rather than the refined one.
+    """
+    from noise.surface import field_constant, field_from_angle_map, field_principal_curvature, field_rotation
+
+    vertices = np.asarray(mesh.vertices)
+    faces = np.asarray(mesh.faces)
     check_field_spec(spec)
     kind, _, arg = spec.partition(":")
     centre = 0.5 * (vertices.min(axis=0) + vertices.max(axis=0))
@@ -125,16 +149,26 @@ def field_on_mesh(spec: str, vertices: np.ndarray, faces: np.ndarray) -> np.ndar
         return field_rotation(vertices, faces, _vector(arg, spec), centre)
     if kind == "curvature":
         return field_principal_curvature(vertices, faces, arg)
-    raise DesignError(f"field {spec!r}: image fields need a UV layout, which meshes do not have here yet")
+    import xatlas
+
+    if base is None or "parent_face" not in mesh.metadata:
+        base, parents = mesh, np.arange(len(faces))
+    else:
+        parents = mesh.metadata["parent_face"]
+    base_vertices, base_faces = np.asarray(base.vertices), np.asarray(base.faces)
+    _, uv_faces, uvs = xatlas.parametrize(base_vertices.astype(np.float32), base_faces.astype(np.uint32))
+    return field_from_angle_map(
+        vertices, faces, parents, base_vertices, base_faces, uvs[uv_faces], _angle_map(Path(arg))
+    )
 
 
-def surface_lic_values(mesh, texture, step_mm: float) -> np.ndarray:
+def surface_lic_values(mesh, texture, step_mm: float, base=None) -> np.ndarray:
     """The design texture's surface LIC at each vertex of ``mesh`` (a trimesh.Trimesh)."""
     from noise.surface import lic_surface
 
     vertices = np.asarray(mesh.vertices)
     faces = np.asarray(mesh.faces)
-    field = field_on_mesh(texture.field, vertices, faces)
+    field = field_on_mesh(texture.field, mesh, base)
     return lic_surface(
         vertices,
         faces,

@@ -160,7 +160,11 @@ def load_closed_mesh(path: str | Path, scale: float = 1.0) -> trimesh.Trimesh:
 
 
 def refine_to_edge_length(mesh: trimesh.Trimesh, max_edge_mm: float) -> trimesh.Trimesh:
-    """Split triangles until no edge is longer than ``max_edge_mm``; shared vertices stay shared."""
+    """Split triangles until no edge is longer than ``max_edge_mm``; shared vertices stay shared.
+
+    The result's ``metadata["parent_face"]`` holds, per new triangle, the index of the
+    input triangle it lies in.
+    """
     area = float(mesh.area)
     expected = area / (0.43 * max_edge_mm**2)  # equilateral triangles of that edge length
     if expected > MAX_TRIANGLES:
@@ -168,12 +172,14 @@ def refine_to_edge_length(mesh: trimesh.Trimesh, max_edge_mm: float) -> trimesh.
             f"the relief needs about {expected:,.0f} triangles on this mesh (more than {MAX_TRIANGLES:,}); "
             "increase texture.feature_size_mm or reduce base.scale"
         )
-    vertices, faces = trimesh.remesh.subdivide_to_size(
-        mesh.vertices, mesh.faces, max_edge=max_edge_mm, max_iter=20
+    vertices, faces, parent = trimesh.remesh.subdivide_to_size(
+        mesh.vertices, mesh.faces, max_edge=max_edge_mm, max_iter=20, return_index=True
     )
     refined = trimesh.Trimesh(vertices=vertices, faces=faces, process=False)
-    refined.merge_vertices()
-    return trimesh.Trimesh(vertices=refined.vertices, faces=refined.faces, process=False)
+    refined.merge_vertices()  # keeps the faces and their order, renumbers the vertices
+    out = trimesh.Trimesh(vertices=refined.vertices, faces=refined.faces, process=False)
+    out.metadata["parent_face"] = np.asarray(parent, dtype=np.int64)
+    return out
 
 
 def displace_along_normals(mesh: trimesh.Trimesh, offsets_mm: np.ndarray) -> trimesh.Trimesh:

@@ -77,7 +77,7 @@ def build_relief(design: Design) -> Relief:
         # two vertices per feature resolve it.
         edge = max(texture.feature_size_mm / 2.0, pitch)
         refined = refine_to_edge_length(base, edge)
-        raw = surface_lic_values(refined, texture, step_mm=pitch)
+        raw = surface_lic_values(refined, texture, step_mm=pitch, base=base)
     else:
         # Four vertices per base-octave feature along an edge resolve the relief's shape;
         # finer than the printer's pixel is wasted.

@@ -112,3 +112,45 @@ def test_surface_lic_bad_input(sphere):
         lic_surface(vertices, faces, np.zeros_like(vertices), length=1.0, step=0.0)
     with pytest.raises(ValueError, match="^vertices, field: expected finite"):
         lic_surface(vertices, faces, np.full_like(vertices, np.nan), length=1.0, step=0.1)
+
+
+def test_angle_map_through_a_uv_layout():
+    from noise.surface import field_from_angle_map
+
+    # A flat 10 x 10 grid in z = 0 with uv = (x, y) / 10, refined from two base triangles.
+    base_vertices = np.array([[0, 0, 0], [10, 0, 0], [10, 10, 0], [0, 10, 0.0]])
+    base_faces = np.array([[0, 1, 2], [0, 2, 3]])
+    base_uv = base_vertices[base_faces][:, :, :2] / 10.0
+    grid = trimesh.Trimesh(base_vertices, base_faces, process=False)
+    vertices, faces, parent = trimesh.remesh.subdivide_to_size(
+        grid.vertices, grid.faces, 1.0, return_index=True
+    )
+    # angle map: 30 degrees on the left half, 120 on the right (u = x / 10)
+    angles = np.where(np.arange(64)[None, :] < 32, np.radians(30.0), np.radians(120.0)) * np.ones((64, 1))
+    field = field_from_angle_map(vertices, faces, parent, base_vertices, base_faces, base_uv, angles)
+    left = vertices[:, 0] < 4.0
+    right = vertices[:, 0] > 6.0
+    for mask, degrees in ((left, 30.0), (right, 120.0)):
+        a = np.radians(degrees)
+        # a line field: compare up to sign
+        alignment = np.abs(field[mask] @ np.array([np.cos(a), np.sin(a), 0.0]))
+        assert alignment.min() > 0.999
+
+
+def test_image_field_on_a_mesh_design(tmp_path):
+    from PIL import Image
+
+    from printapp.design import load_design
+    from printapp.pipeline import run_design
+
+    root = __import__("pathlib").Path(__file__).parent.parent
+    Image.fromarray(np.full((32, 32), 85, dtype=np.uint8)).save(tmp_path / "angles.png")
+    design = tmp_path / "d.toml"
+    design.write_text(
+        f'[base]\npath = "{(root / "data" / "meshes" / "featuretype.STL").as_posix()}"\nscale = 3.0\n'
+        '[texture]\nkind = "lic"\nfield = "image:angles.png"\nfeature_size_mm = 0.4\nlength_mm = 1.0\n'
+        "[relief]\namplitude_um = 100\n"
+    )
+    outcome = run_design(load_design(design), tmp_path / "out", quiet=True, render=False)
+    assert outcome.passed, outcome.reasons
+    assert outcome.manifest["watertight"] and outcome.manifest["genus"] == 9

@@ -115,75 +115,100 @@ def _lic_per_pixel(u, v, texture, n_steps: np.int64, h: float, rk4: bool, hann: 
 
 
 @njit(cache=True)
-def _trace_side(
-    u, v, texture, x0: float, y0: float, n_max: np.int64, h: float, rk4: bool, xs, ys, ts, sign: int
-):
-    """Trace up to n_max steps from (x0, y0) one way; store sample k at index n_max + sign k.
+def _extend(u, v, texture, xs, ys, ts, run, end: np.int64, steps: np.int64, sign: int, h: float, rk4: bool):
+    """Trace up to ``steps`` more steps from buffer index ``end`` in direction ``sign``.
 
-    Returns the number of steps taken and whether the streamline ended (rather than
-    reaching n_max).
+    Keeps the running sums ``run`` such that the sum of ts over [a, b] is
+    run[b] - run[a - 1]. Returns the new end index and whether the streamline ended.
     """
-    x, y = x0, y0
-    for k in range(1, n_max + 1):
+    x, y = xs[end], ys[end]
+    for _ in range(steps):
         x, y, ok = _step(u, v, x, y, sign * h, rk4)
         if not ok:
-            return k - 1, True
-        idx = n_max + sign * k
-        xs[idx] = x
-        ys[idx] = y
-        ts[idx] = _sample(texture, x, y)
-    return n_max, False
+            return end, True
+        end += sign
+        xs[end] = x
+        ys[end] = y
+        ts[end] = _sample(texture, x, y)
+        if sign > 0:
+            run[end] = run[end - 1] + ts[end]
+        else:
+            run[end] = run[end + 1] - ts[end + 1]
+    return end, False
+
+
+@njit(cache=True)
+def _deposit(xs, ys, ts, run, lo, hi, k0, k1, n_half, max_offset, s, c) -> np.int64:
+    """Add the box-filtered values of samples k0..k1 to the pixels they stand for; count new pixels."""
+    ny, nx = s.shape
+    fresh = 0
+    for k in range(k0, k1 + 1):
+        a = max(k - n_half, lo)
+        b = min(k + n_half, hi)
+        before = run[a] - ts[a]  # run[a - 1], also where a is the buffer's first sample
+        value = (run[b] - before) / (b - a + 1)
+        pi = int(xs[k] + 0.5)
+        pj = int(ys[k] + 0.5)
+        # Only samples near a pixel's centre stand for it: the convolution of noise
+        # changes quickly across streamlines.
+        if abs(xs[k] - pi) <= max_offset and abs(ys[k] - pj) <= max_offset and 0 <= pi < nx and 0 <= pj < ny:
+            if c[pj, pi] == 0:
+                fresh += 1
+            s[pj, pi] += value
+            c[pj, pi] += 1
+    return fresh
 
 
 @njit(cache=True, parallel=True)
 def _lic_fast_box(
-    u, v, texture, n_half: np.int64, n_extra: np.int64, h: float, rk4: bool, max_offset: float, sums, hits
-) -> None:
-    """Stalling & Hege's fast LIC for the box kernel; per-band accumulators sums[b], hits[b]."""
+    u, v, texture, n_half: np.int64, n_cap: np.int64, h: float, rk4: bool, max_offset: float, sums, hits
+):
+    """Stalling & Hege's fast LIC for the box kernel; per-band accumulators sums[b], hits[b].
+
+    A streamline starts at an uncovered pixel centre and is extended, a kernel length
+    at a time, for as long as its samples still reach pixels that nothing has covered.
+    """
     ny, nx = texture.shape
     n_bands = sums.shape[0]
-    n_max = n_half + n_extra
+    mid = n_cap
     for band in prange(n_bands):
         j_begin = band * ny // n_bands
         j_end = (band + 1) * ny // n_bands
-        xs = np.empty(2 * n_max + 1)
-        ys = np.empty(2 * n_max + 1)
-        ts = np.empty(2 * n_max + 1)
-        prefix = np.empty(2 * n_max + 2)
+        xs = np.empty(2 * n_cap + 1)
+        ys = np.empty(2 * n_cap + 1)
+        ts = np.empty(2 * n_cap + 1)
+        run = np.empty(2 * n_cap + 1)
         s = sums[band]
         c = hits[band]
         for j in range(j_begin, j_end):
             for i in range(nx):
                 if c[j, i] > 0:
                     continue
-                xs[n_max] = float(i)
-                ys[n_max] = float(j)
-                ts[n_max] = texture[j, i]
-                fwd, fwd_stop = _trace_side(u, v, texture, float(i), float(j), n_max, h, rk4, xs, ys, ts, 1)
-                back, back_stop = _trace_side(
-                    u, v, texture, float(i), float(j), n_max, h, rk4, xs, ys, ts, -1
-                )
-                lo = n_max - back
-                hi = n_max + fwd
-                prefix[lo] = 0.0
-                for k in range(lo, hi + 1):
-                    prefix[k + 1] = prefix[k] + ts[k]
+                xs[mid] = float(i)
+                ys[mid] = float(j)
+                ts[mid] = texture[j, i]
+                run[mid] = ts[mid]
+                hi, hi_stop = _extend(u, v, texture, xs, ys, ts, run, mid, n_half, 1, h, rk4)
+                lo, lo_stop = _extend(u, v, texture, xs, ys, ts, run, mid, n_half, -1, h, rk4)
                 # Samples whose window reaches past where tracing was cut short (not
-                # where the streamline ended) would differ from the per-pixel result.
-                first = lo if back_stop else min(lo + n_half, n_max)
-                last = hi if fwd_stop else max(hi - n_half, n_max)
-                for k in range(first, last + 1):
-                    a = max(k - n_half, lo)
-                    b = min(k + n_half, hi)
-                    value = (prefix[b + 1] - prefix[a]) / (b - a + 1)
-                    pi = int(xs[k] + 0.5)
-                    pj = int(ys[k] + 0.5)
-                    # Only samples near a pixel's centre stand for it: the convolution
-                    # changes quickly across streamlines of a noise texture.
-                    near = abs(xs[k] - pi) <= max_offset and abs(ys[k] - pj) <= max_offset
-                    if near and 0 <= pi < nx and 0 <= pj < ny:
-                        s[pj, pi] += value
-                        c[pj, pi] += 1
+                # where the streamline ended) are not final yet.
+                done_hi = hi if hi_stop else hi - n_half
+                done_lo = lo if lo_stop else lo + n_half
+                _deposit(xs, ys, ts, run, lo, hi, done_lo, done_hi, n_half, max_offset, s, c)
+                while not hi_stop and hi - mid + n_half <= n_cap:
+                    hi, hi_stop = _extend(u, v, texture, xs, ys, ts, run, hi, n_half, 1, h, rk4)
+                    new_hi = hi if hi_stop else hi - n_half
+                    fresh = _deposit(xs, ys, ts, run, lo, hi, done_hi + 1, new_hi, n_half, max_offset, s, c)
+                    done_hi = new_hi
+                    if fresh == 0:
+                        break
+                while not lo_stop and mid - lo + n_half <= n_cap:
+                    lo, lo_stop = _extend(u, v, texture, xs, ys, ts, run, lo, n_half, -1, h, rk4)
+                    new_lo = lo if lo_stop else lo + n_half
+                    fresh = _deposit(xs, ys, ts, run, lo, hi, new_lo, done_lo - 1, n_half, max_offset, s, c)
+                    done_lo = new_lo
+                    if fresh == 0:
+                        break
 
 
 def _as_field(name: str, array: np.ndarray, shape: tuple[int, ...] | None) -> np.ndarray:
@@ -263,9 +288,8 @@ def lic2d(
     bands = max(1, min(_BANDS, ny))
     sums = np.zeros((bands, ny, nx), dtype=np.float64)
     hits = np.zeros((bands, ny, nx), dtype=np.int32)
-    # Streamlines run past the kernel by a few kernel lengths: longer ones cover more
-    # pixels per seed, but converging streamlines then pile samples on the same pixels.
-    extra = np.int64(max(2 * n_steps, round(8 / step)))
-    _lic_fast_box(uu, vv, tex, np.int64(n_steps), extra, float(step), rk4, float(max_offset), sums, hits)
+    # Streamlines grow while they cover new pixels, up to this many steps each way.
+    cap = np.int64(max(16 * n_steps, round(64 / step)))
+    _lic_fast_box(uu, vv, tex, np.int64(n_steps), cap, float(step), rk4, float(max_offset), sums, hits)
     total_hits = hits.sum(axis=0)
     return sums.sum(axis=0) / np.maximum(total_hits, 1)

@@ -11,10 +11,11 @@ Two evaluation strategies:
 
 * per pixel (any kernel): one streamline per pixel centre, parallel over rows;
 * the fast box-kernel method of Stalling & Hege: one long streamline serves many
-  pixels, its box-filtered values computed by a running sum in O(1) per sample, and
-  new streamlines are seeded only in pixels that no earlier one has covered. The
-  image is split into a fixed number of row bands, each with its own coverage and
-  accumulators, so the result does not depend on the number of threads.
+  pixels, its box-filtered values computed by running sums in O(1) per sample; new
+  streamlines start only in pixels that no earlier one has covered, and grow a kernel
+  length at a time while they still cover new pixels. The image is split into a fixed
+  number of row bands, each with its own coverage and accumulators, so the result does
+  not depend on the number of threads.
 """
 
 from __future__ import annotations
@@ -256,6 +257,11 @@ def lic2d(
         Integration step (pixels), in (0, 2].
     fast : bool, optional
         Use the fast method (box kernel only). Default: True for the box kernel.
+    max_offset : float
+        Fast method: how far (pixels, per axis) from a pixel's centre a streamline
+        sample may be and still stand for that pixel. 0.25 matches the per-pixel
+        result to a correlation of about 0.99 on white noise; 0.5 (every sample counts,
+        as in Stalling & Hege) is two to three times faster at about 0.96.
 
     Returns
     -------

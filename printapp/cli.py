@@ -7,6 +7,7 @@ the commands that need them, so ``printapp --help`` starts fast.
 from __future__ import annotations
 
 import sys
+import zipfile
 from enum import StrEnum
 from pathlib import Path
 from typing import Annotated
@@ -239,6 +240,66 @@ def printers() -> None:
             f"{p.layer_height_mm:g} ({p.min_layer_height_mm:g}-{p.max_layer_height_mm:g})",
         )
     _out.print(table)
+
+
+@app.command("slice")
+def slice_command(
+    model: Annotated[Path, typer.Argument(help="A closed mesh (STL, OBJ, PLY, 3MF ...), in mm.")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="The .sl1 archive to write.")],
+    printer: Annotated[str, typer.Option(help="Printer profile (see `printapp printers`).")] = "prusa-sl1",
+    layer_height_mm: Annotated[float | None, typer.Option(help="Layer height [the profile's].")] = None,
+    no_antialias: Annotated[bool, typer.Option("--no-antialias", help="Pure 0/255 pixels.")] = False,
+    png_dir: Annotated[
+        Path | None, typer.Option(help="Also write the layers as a PNG stack (with config.ini) here.")
+    ] = None,
+) -> None:
+    """Slice a closed mesh into a PrusaSlicer-compatible .sl1 archive (and optionally a PNG stack)."""
+    import difflib
+    import io
+
+    from printapp.exporters import OutputFolder, atomic_write_bytes
+    from printapp.mesh import load_closed_mesh
+    from slicing import PRINTERS, encode_png_grey, slice_mesh, write_sl1
+
+    try:
+        if printer not in PRINTERS:
+            close = difflib.get_close_matches(printer, PRINTERS, n=1)
+            hint = f"; did you mean '{close[0]}'?" if close else ""
+            raise PrintappError(
+                f"--printer: unknown printer '{printer}', expected one of {', '.join(PRINTERS)}{hint}"
+            )
+        if out.suffix.lower() != ".sl1":
+            raise PrintappError(f"{out}: expected an output file ending in .sl1")
+        mesh = load_closed_mesh(model)
+        try:
+            slices = slice_mesh(
+                mesh.vertices,
+                mesh.faces,
+                PRINTERS[printer],
+                layer_height_mm=layer_height_mm,
+                antialias=False if no_antialias else None,
+            )
+        except ValueError as exc:
+            raise PrintappError(f"{model}: {exc}") from None
+        buffer = io.BytesIO()
+        stats = write_sl1(buffer, slices, out.stem)
+        if png_dir is not None:
+            with OutputFolder(png_dir) as folder:
+                with zipfile.ZipFile(io.BytesIO(buffer.getvalue())) as archive:
+                    folder.write_bytes("config.ini", archive.read("config.ini"))
+                for k, cov in slices.coverages():
+                    folder.write_bytes(
+                        f"{k:05d}.png", encode_png_grey(slices.display_image(slices.grey(cov)))
+                    )
+                folder.commit()
+        atomic_write_bytes(out, buffer.getvalue())
+    except PrintappError as exc:
+        raise _fail(exc) from None
+    label = PRINTERS[printer].label
+    _out.print(
+        f"{model.name}: {slices.n_layers} layers of {slices.layer_height_mm:g} mm on {label}, "
+        f"{stats.volume_ml:.3f} ml of resin; wrote {out}" + (f" and {png_dir}/" if png_dir else "")
+    )
 
 
 @app.command()

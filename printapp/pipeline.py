@@ -38,6 +38,8 @@ from printapp.texture import (
     relief_heightfield,
 )
 from render.microfacet import SlopeRoughness, slope_roughness
+from slicing import Slices, slice_mesh, write_sl1
+from slicing.printed import pixel_centres_mm, printed_heights
 
 DEFAULT_DESIGN = files("printapp").joinpath("data/default_design.toml")
 _PATCH_FEATURES = 12.0  # side of the flat patch used for appearance statistics, in base-octave features
@@ -100,6 +102,56 @@ def build_relief(design: Design) -> Relief:
     return Relief(mesh=mesh, patch=HeightField((values - lo) * scale, step, step))
 
 
+@dataclass
+class AsPrinted:
+    """The printed relief of a tile (as a height field at the printer's pixels) and its error."""
+
+    field: HeightField
+    rms_error_mm: float
+    max_error_mm: float
+
+
+def as_printed(design_field: HeightField, slices: Slices, base_thickness_mm: float) -> AsPrinted:
+    """What the printer makes of a tile: printed heights at pixel centres, against the design.
+
+    The comparison uses pixels at least one pixel inside the tile's edges (the walls'
+    grey pixels are not relief), the design interpolated bilinearly at the pixel centres.
+    """
+    from scipy.interpolate import RegularGridInterpolator
+
+    heights = printed_heights(slices)
+    x, y = pixel_centres_mm(slices)
+    xd = x - slices.shift_mm[0] - design_field.origin_x_mm
+    yd = y - slices.shift_mm[1] - design_field.origin_y_mm
+    px, py = slices.profile.pitch_x_mm, slices.profile.pitch_y_mm
+    cols = np.nonzero((xd > px) & (xd < design_field.width_mm - px))[0]
+    rows = np.nonzero((yd > py) & (yd < design_field.depth_mm - py))[0]
+    window = heights[rows[0] : rows[-1] + 1, cols[0] : cols[-1] + 1]
+    ny, nx = design_field.shape
+    interpolate = RegularGridInterpolator(
+        (np.arange(ny) * design_field.pitch_y_mm, np.arange(nx) * design_field.pitch_x_mm),
+        design_field.heights_mm,
+    )
+    yy, xx = np.meshgrid(yd[rows], xd[cols], indexing="ij")
+    designed = (
+        interpolate(np.column_stack([yy.ravel(), xx.ravel()])).reshape(window.shape) + base_thickness_mm
+    )
+    error = window - designed
+    return AsPrinted(
+        field=HeightField(window - base_thickness_mm, px, py, float(xd[cols[0]]), float(yd[rows[0]])),
+        rms_error_mm=float(np.sqrt(np.mean(error**2))),
+        max_error_mm=float(np.max(np.abs(error))),
+    )
+
+
+def fits_printer(design: Design, solid: SolidCheck) -> bool:
+    """Whether the model fits the printer's display and height, in either orientation."""
+    profile = design.printer.profile
+    sx, sy, sz = solid.size_mm
+    w, d = profile.display_width_mm, profile.display_height_mm
+    return ((sx <= w and sy <= d) or (sx <= d and sy <= w)) and sz <= profile.max_print_height_mm
+
+
 def verify(
     design: Design, solid: SolidCheck, appearance: SlopeRoughness, image: np.ndarray | None
 ) -> tuple[list[str], list[str]]:
@@ -119,9 +171,8 @@ def verify(
     )
     sx, sy, sz = solid.size_mm
     w, d = profile.display_width_mm, profile.display_height_mm
-    fits = (sx <= w and sy <= d) or (sx <= d and sy <= w)
     check(
-        fits and sz <= profile.max_print_height_mm,
+        fits_printer(design, solid),
         f"fits the {profile.label} build volume",
         f"model is {sx:.1f} x {sy:.1f} x {sz:.1f} mm; the {profile.label} prints at most "
         f"{w:g} x {d:g} x {profile.max_print_height_mm:g} mm",
@@ -214,8 +265,18 @@ def run_design(
         mesh = relief.mesh
         with timer.stage("check", "solid checks (trimesh, manifold3d)"):
             solid = check_solid(mesh)
+        slices = printed = None
+        if solid.ok and fits_printer(design, solid):
+            with timer.stage("slice", "slicing for the printer"):
+                slices = slice_mesh(
+                    mesh.vertices, mesh.faces, design.printer.profile, layer_height_mm=design.layer_height_mm
+                )
+            if isinstance(design.base, TileBase):
+                with timer.stage("as_printed", "as-printed relief"):
+                    printed = as_printed(relief.patch, slices, design.base.thickness_mm)
         with timer.stage("appearance", "predicted appearance (slopes)"):
-            sx, sy = relief.patch.slopes()
+            # From what the printer will make where that is known, else from the design.
+            sx, sy = (printed.field if printed is not None else relief.patch).slopes()
             appearance = slope_roughness(sx, sy)
         image = None
         choice = None
@@ -247,6 +308,9 @@ def run_design(
             if ok or force:
                 out.write_bytes("model.stl", stl_bytes(mesh.vertices, mesh.faces))
                 out.write_bytes("model.3mf", threemf_bytes(mesh.vertices, mesh.faces, design.name))
+                if slices is not None:
+                    with open(out.path("slices.sl1"), "wb") as stream:
+                        write_sl1(stream, slices, "slices")
         profile = design.printer.profile
         lo, hi = solid.bbox_min_mm, solid.bbox_max_mm
         grid = list(relief.patch.shape) if isinstance(design.base, TileBase) else None
@@ -278,10 +342,22 @@ def run_design(
                 "name": profile.name,
                 "pixel_pitch_mm": profile.pitch_mm,
                 "layer_height_mm": design.layer_height_mm,
-                "layers": profile.layer_count(solid.size_mm[2], design.layer_height_mm),
+                "layers": slices.n_layers
+                if slices is not None
+                else profile.layer_count(solid.size_mm[2], design.layer_height_mm),
+                "antialias": profile.antialiasing,
+            },
+            "as_printed": None
+            if printed is None
+            else {
+                "model": "linear sub-voxel growth: a pixel of grey g cures g/255 of its layer",
+                "rms_height_error_um": round(printed.rms_error_mm * 1000, 3),
+                "max_height_error_um": round(printed.max_error_mm * 1000, 3),
+                "grid": list(printed.field.shape),
             },
             "appearance": {
                 "method": "relief slope statistics, Beckmann roughness (geometric optics)",
+                "from": "as-printed relief" if printed is not None else "designed relief",
                 "roughness": _finite_or_none(appearance.roughness),
                 "anisotropy": _finite_or_none(appearance.anisotropy),
                 "alpha_major": round(appearance.alpha_major, 6),
@@ -305,7 +381,7 @@ def run_design(
         }
         staged = [
             n
-            for n in ("model.stl", "model.3mf", "preview.png", "design.resolved.toml")
+            for n in ("model.stl", "model.3mf", "slices.sl1", "preview.png", "design.resolved.toml")
             if out.path(n).exists()
         ]
         manifest["outputs"] = [*staged, "manifest.json"]

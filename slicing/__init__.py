@@ -1,8 +1,22 @@
-"""Slicing for resin printers: printer profiles (layer images and .sl1 come later).
+"""Slicing for resin printers: printer profiles, layer images with exact area coverage, .sl1 archives.
 
-Pure numerics and data; no printing.
+Pure numerics; the .sl1 writer writes to a stream its caller opens. No printing.
 """
 
 from slicing.printers import PRINTERS, PrinterProfile, custom_printer
+from slicing.raster import rasterise_sections, section_segments, slice_heights
+from slicing.sl1 import Slices, encode_png_grey, read_sl1, slice_mesh, write_sl1
 
-__all__ = ["PRINTERS", "PrinterProfile", "custom_printer"]
+__all__ = [
+    "PRINTERS",
+    "PrinterProfile",
+    "Slices",
+    "custom_printer",
+    "encode_png_grey",
+    "rasterise_sections",
+    "read_sl1",
+    "section_segments",
+    "slice_heights",
+    "slice_mesh",
+    "write_sl1",
+]

@@ -5,6 +5,7 @@ import json
 import os
 import subprocess
 import sys
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -41,7 +42,14 @@ def test_demo_writes_every_output(demo_runs):
     base, first, _ = demo_runs
     assert first.returncode == 0, first.stderr
     names = {p.name for p in (base / "a").iterdir()}
-    assert names == {"model.stl", "model.3mf", "preview.png", "design.resolved.toml", "manifest.json"}
+    assert names == {
+        "model.stl",
+        "model.3mf",
+        "slices.sl1",
+        "preview.png",
+        "design.resolved.toml",
+        "manifest.json",
+    }
     assert "Traceback" not in first.stderr
 
 
@@ -77,7 +85,7 @@ def test_demo_preview_is_an_image_of_something(demo_runs):
 def test_demo_is_deterministic(demo_runs):
     base, _, second = demo_runs
     assert second.returncode == 0, second.stderr
-    for name in ("model.stl", "model.3mf", "design.resolved.toml", "preview.png"):
+    for name in ("model.stl", "model.3mf", "slices.sl1", "design.resolved.toml", "preview.png"):
         assert digest(base / "a" / name) == digest(base / "b" / name), name
 
 
@@ -329,3 +337,34 @@ def test_bench_frames(tmp_path):
     }
     assert rows[("duff", "float32")]["max_error"] < 1e-6
     assert rows[("frisvad", "float32")]["max_error"] > 1e-3
+
+
+def test_slice_command_writes_an_archive_and_a_png_stack(tmp_path):
+    out = tmp_path / "part.sl1"
+    stack = tmp_path / "stack"
+    result = printapp("slice", ROOT / "data" / "meshes" / "featuretype.STL", "-o", out, "--png-dir", stack)
+    assert result.returncode == 0, result.stderr
+    with zipfile.ZipFile(out) as archive:
+        assert archive.namelist()[0] == "config.ini"
+        count = len([n for n in archive.namelist() if n.endswith(".png")])
+    assert count == len(list(stack.glob("*.png"))) > 10
+    assert (stack / "config.ini").exists()
+    image = Image.open(stack / "00000.png")
+    assert image.mode == "L" and image.size == (1440, 2560)
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["data/meshes/teapot.stl", "-o", "x.sl1"], "found 64 open edges"),
+        (["data/meshes/featuretype.STL", "-o", "x.sl1", "--printer", "elegoo"], "--printer: unknown printer"),
+        (["data/meshes/featuretype.STL", "-o", "x.zip"], "expected an output file ending in .sl1"),
+        (["data/meshes/featuretype.STL", "-o", "x.sl1", "--layer-height-mm", "0.3"], "outside what"),
+    ],
+)
+def test_slice_bad_input(tmp_path, args, message):
+    args = [str(ROOT / a) if a.startswith("data/") else a for a in args]
+    result = printapp("slice", *args, cwd=tmp_path)
+    assert result.returncode == 2
+    assert message in result.stderr
+    assert list(tmp_path.iterdir()) == []

@@ -1,0 +1,186 @@
+"""Slicing: PrusaSlicer's conventions, exact coverage, .sl1 round trips, the as-printed relief."""
+
+import io
+import shutil
+import subprocess
+import zipfile
+from pathlib import Path
+
+import manifold3d
+import numpy as np
+import pytest
+import trimesh
+
+from slicing import PRINTERS, read_sl1, slice_heights, slice_mesh, write_sl1
+from slicing.printed import pixel_centres_mm, printed_heights
+
+ROOT = Path(__file__).parent.parent
+SL1 = PRINTERS["prusa-sl1"]
+
+
+def manifold_mesh(m: manifold3d.Manifold) -> trimesh.Trimesh:
+    mesh = m.to_mesh()
+    return trimesh.Trimesh(
+        mesh.vert_properties[:, :3].astype(float), mesh.tri_verts.astype(np.int64), process=False
+    )
+
+
+@pytest.fixture(scope="module")
+def lshape() -> trimesh.Trimesh:
+    """An asymmetric L: a 10 x 2 mm arm along x and a 2 x 6 mm arm along y, 3 mm tall."""
+    a = manifold3d.Manifold.cube([10.0, 2.0, 3.0])
+    b = manifold3d.Manifold.cube([2.0, 6.0, 3.0])
+    return manifold_mesh(a + b)
+
+
+def sl1_bytes(mesh, **kwargs) -> bytes:
+    buffer = io.BytesIO()
+    write_sl1(buffer, slice_mesh(mesh.vertices, mesh.faces, SL1, **kwargs), "part")
+    return buffer.getvalue()
+
+
+def test_slice_heights_follow_prusaslicer():
+    z = slice_heights(3.0, 0.05, 0.05)
+    assert len(z) == 1 + int(np.ceil((3.0 - 0.05) / 0.05))
+    assert z[0] == pytest.approx(0.025)
+    np.testing.assert_allclose(np.diff(z[1:]), 0.05)
+    assert z[1] == pytest.approx(0.075)
+    assert len(slice_heights(0.03, 0.05, 0.05)) == 1
+    z = slice_heights(1.0, 0.1, 0.05)
+    assert z[0] == pytest.approx(0.025) and z[1] == pytest.approx(0.1)
+
+
+def test_lshape_layers_orientation_and_mirroring(lshape):
+    config, layers = read_sl1(io.BytesIO(sl1_bytes(lshape)))
+    assert len(layers) == 60 and config["numFast"] == "60" and config["jobDir"] == "part"
+    image = layers[0]
+    assert image.shape == (2560, 1440)  # portrait: 1440 wide, 2560 tall
+    lit = np.argwhere(image > 127)
+    rows, cols = lit[:, 0], lit[:, 1]
+    # x runs down the rows (large x at the top), y along the columns (mirror_x): the long
+    # arm fills all rows at small y (left), the short arm all columns at small x (bottom)
+    assert rows.max() - rows.min() + 1 == pytest.approx(10 / SL1.pitch_x_mm, abs=2)
+    assert cols.max() - cols.min() + 1 == pytest.approx(6 / SL1.pitch_y_mm, abs=2)
+    bottom = image[rows.max() - 5]
+    top = image[rows.min() + 5]
+    assert (bottom > 127).sum() == pytest.approx(6 / SL1.pitch_y_mm, abs=2)
+    assert (top > 127).sum() == pytest.approx(2 / SL1.pitch_y_mm, abs=2)
+    assert np.argmax(top > 127) == cols.min()  # the long arm sits at small y, on the left
+    # centred on the display
+    assert (rows.min() + rows.max()) / 2 == pytest.approx(1280, abs=1.5)
+    assert (cols.min() + cols.max()) / 2 == pytest.approx(720, abs=1.5)
+
+
+def test_disc_coverage_equals_its_area():
+    disc = manifold_mesh(manifold3d.Manifold.cylinder(1.0, 20.0, 20.0, 4096))
+    slices = slice_mesh(disc.vertices, disc.faces, SL1)
+    polygon_area = 0.5 * 4096 * 20.0**2 * np.sin(2 * np.pi / 4096)
+    pixel_area = SL1.pitch_x_mm * SL1.pitch_y_mm
+    for _, coverage in slices.coverages():
+        grey = slices.grey(coverage)
+        assert grey.sum() / 255 * pixel_area == pytest.approx(polygon_area, rel=1e-3)
+        assert coverage.sum() * pixel_area == pytest.approx(polygon_area, rel=1e-9)
+        partial = (grey > 0) & (grey < 255)
+        assert partial.sum() > 1000  # anti-aliased edge
+
+
+def test_holes_stay_empty():
+    ring = manifold_mesh(
+        manifold3d.Manifold.cylinder(1.0, 10.0, 10.0, 256) - manifold3d.Manifold.cylinder(1.0, 5.0, 5.0, 256)
+    )
+    slices = slice_mesh(ring.vertices, ring.faces, SL1)
+    _, coverage = next(iter(slices.coverages()))
+    centre = coverage[
+        slices.rows // 2 - 20 : slices.rows // 2 + 20, slices.cols // 2 - 20 : slices.cols // 2 + 20
+    ]
+    assert centre.max() < 1e-12  # empty up to the accumulation's rounding
+    expected = 0.5 * 256 * (100 - 25) * np.sin(2 * np.pi / 256)
+    assert coverage.sum() * SL1.pitch_x_mm * SL1.pitch_y_mm == pytest.approx(
+        expected, rel=1e-7
+    )  # float32 vertices
+
+
+def test_sl1_archive_layout_and_determinism(lshape):
+    data = sl1_bytes(lshape)
+    assert data == sl1_bytes(lshape)
+    with zipfile.ZipFile(io.BytesIO(data)) as archive:
+        names = archive.namelist()
+        assert names[:2] == ["config.ini", "prusaslicer.ini"]
+        assert names[2:] == [f"part{k:05d}.png" for k in range(60)]
+        assert all(i.compress_type == zipfile.ZIP_DEFLATED for i in archive.infolist())
+        assert not any(n.endswith("/") for n in names)
+        keys = [line.split(" = ")[0] for line in archive.read("config.ini").decode().splitlines()]
+        assert keys == sorted(keys)
+        assert set(keys) == {
+            "action", "expTime", "expTimeFirst", "expUserProfile", "fileCreationTimestamp", "hollow",
+            "jobDir", "layerHeight", "materialName", "numFade", "numFast", "numSlow", "printProfile",
+            "printTime", "printerModel", "printerProfile", "printerVariant", "prusaSlicerVersion",
+            "usedMaterial",
+        }  # fmt: skip
+        config = dict(line.split(" = ", 1) for line in archive.read("config.ini").decode().splitlines())
+        assert float(config["usedMaterial"]) == pytest.approx(lshape.volume / 1000, rel=0.01)
+        ini = dict(line.split(" = ", 1) for line in archive.read("prusaslicer.ini").decode().splitlines())
+        assert ini["display_mirror_x"] == "1" and ini["display_orientation"] == "portrait"
+
+
+def test_no_antialias_gives_pure_black_and_white(lshape):
+    _, layers = read_sl1(io.BytesIO(sl1_bytes(lshape, antialias=False)))
+    assert set(np.unique(layers[10]).tolist()) == {0, 255}
+
+
+@pytest.mark.parametrize(
+    ("mesh", "kwargs", "message"),
+    [
+        (trimesh.creation.box(extents=(130.0, 10.0, 10.0)), {}, "too large in x by 9.04 mm"),
+        (trimesh.creation.box(extents=(10.0, 10.0, 151.0)), {}, "too large in z by 1.00 mm"),
+        (trimesh.Trimesh(np.zeros((0, 3)), np.zeros((0, 3), dtype=int)), {}, "found none"),
+        (trimesh.creation.box(), {"layer_height_mm": 0.2}, "outside what Original Prusa SL1 can print"),
+    ],
+)
+def test_bad_input(mesh, kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        slice_mesh(mesh.vertices, mesh.faces, SL1, **kwargs)
+
+
+def test_as_printed_tile_recovers_the_design():
+    from printapp.design import design_from_dict
+    from printapp.mesh import slab_from_heightfield
+    from printapp.pipeline import as_printed
+    from printapp.texture import relief_heightfield
+
+    design = design_from_dict({"base": {"width_mm": 6.0, "depth_mm": 5.0}, "relief": {"amplitude_um": 200}})
+    field = relief_heightfield(design)
+    mesh = slab_from_heightfield(field, 2.0)
+    slices = slice_mesh(mesh.vertices, mesh.faces, SL1)
+    printed = as_printed(field, slices, 2.0)
+    sx, sy = field.slopes()
+    steepest = float(np.max(np.hypot(sx, sy)))
+    # within half a layer, plus what half a pixel of lateral offset can add on a slope
+    assert printed.max_error_mm <= 0.025 + 0.5 * SL1.pitch_mm * steepest
+    assert printed.rms_error_mm < 0.025
+    heights = printed_heights(slices)
+    x, _ = pixel_centres_mm(slices)
+    assert heights.max() == pytest.approx(2.2, abs=0.05)
+    assert len(x) == slices.cols
+
+
+@pytest.mark.skipif(shutil.which("prusa-slicer") is None, reason="PrusaSlicer is not installed")
+def test_layers_match_prusaslicer(tmp_path, lshape):
+    stl = tmp_path / "lshape.stl"
+    lshape.export(stl)
+    subprocess.run(
+        ["prusa-slicer", "--datadir", str(tmp_path / "dd"), "--loglevel", "1", "--load",
+         str(ROOT / "peers" / "sl1_flat.ini"), "--export-sla", "-o", str(tmp_path / "ps.sl1"), str(stl)],
+        check=True, capture_output=True, timeout=300,
+    )  # fmt: skip
+    with open(tmp_path / "ps.sl1", "rb") as stream:
+        config_ps, theirs = read_sl1(stream)
+    config_ours, ours = read_sl1(io.BytesIO(sl1_bytes(lshape)))
+    assert len(ours) == len(theirs)
+    assert set(config_ours) == set(config_ps)
+    for a, b in zip(ours, theirs, strict=True):
+        a, b = a.astype(int), b.astype(int)
+        union = ((a > 127) | (b > 127)).sum()
+        assert ((a > 127) & (b > 127)).sum() / union > 0.998
+        edge = ((a > 0) & (a < 255)) | ((b > 0) & (b < 255))
+        assert np.abs(a - b)[edge].mean() < 2.0

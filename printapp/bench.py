@@ -200,10 +200,18 @@ def bench_frames(repeats: int) -> StageResult:
     return run(repeats)
 
 
+def bench_slice(repeats: int) -> StageResult:
+    """Slicing beside PrusaSlicer (see printapp.bench_slice)."""
+    from printapp.bench_slice import bench_slice as run
+
+    return run(repeats)
+
+
 STAGES: dict[str, Callable[[int], StageResult]] = {
     "noise": bench_noise,
     "frames": bench_frames,
     "lic": bench_lic,
+    "slice": bench_slice,
     "mesh": bench_mesh,
     "pipeline": bench_pipeline,
 }

@@ -259,7 +259,8 @@ def slice_command(
 
     from printapp.exporters import OutputFolder, atomic_write_bytes
     from printapp.mesh import load_closed_mesh
-    from slicing import PRINTERS, encode_png_grey, slice_mesh, write_sl1
+    from slicing import PRINTERS, slice_mesh, write_sl1
+    from slicing.sl1 import encoded_layers
 
     try:
         if printer not in PRINTERS:
@@ -287,10 +288,8 @@ def slice_command(
             with OutputFolder(png_dir) as folder:
                 with zipfile.ZipFile(io.BytesIO(buffer.getvalue())) as archive:
                     folder.write_bytes("config.ini", archive.read("config.ini"))
-                for k, cov in slices.coverages():
-                    folder.write_bytes(
-                        f"{k:05d}.png", encode_png_grey(slices.display_image(slices.grey(cov)))
-                    )
+                for k, png in encoded_layers(slices):
+                    folder.write_bytes(f"{k:05d}.png", png)
                 folder.commit()
         atomic_write_bytes(out, buffer.getvalue())
     except PrintappError as exc:

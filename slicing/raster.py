@@ -116,7 +116,7 @@ def section_segments(
     return layer[order], seg[order]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _accumulate_line(acc, x0: float, y0: float, x1: float, y1: float) -> None:
     """Add the signed area a directed segment sweeps to the cells it crosses (font-rs style).
 
@@ -177,11 +177,65 @@ def _accumulate_line(acc, x0: float, y0: float, x1: float, y1: float) -> None:
         row += 1
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
+def _accumulate_layer(
+    seg, start, end, ox: float, oy: float, inv_pitch_x: float, inv_pitch_y: float, acc
+) -> None:
+    acc[:, :] = 0.0
+    for s in range(start, end):
+        _accumulate_line(
+            acc,
+            (seg[s, 0] - ox) * inv_pitch_x,
+            (seg[s, 1] - oy) * inv_pitch_y,
+            (seg[s, 2] - ox) * inv_pitch_x,
+            (seg[s, 3] - oy) * inv_pitch_y,
+        )
+
+
+@njit(cache=True, nogil=True)
 def _rasterise_layer(
     seg, start, end, ox: float, oy: float, inv_pitch_x: float, inv_pitch_y: float, acc, out
 ) -> None:
-    acc[:, :] = 0.0
+    _accumulate_layer(seg, start, end, ox, oy, inv_pitch_x, inv_pitch_y, acc)
+    rows, cols = out.shape
+    for r in range(rows):
+        total = 0.0
+        for c in range(cols):
+            total += acc[r, c]
+            out[r, c] = min(abs(total), 1.0)
+
+
+@njit(cache=True, nogil=True)
+def _layer_box(
+    seg, start, end, ox: float, oy: float, inv_pitch_x: float, inv_pitch_y: float, rows: int, cols: int
+):
+    """Pixel rows [r0, r1) and columns [c0, c1) of the window that a layer's segments touch."""
+    if end <= start:
+        return 0, 0, 0, 0
+    xmin = ymin = np.inf
+    xmax = ymax = -np.inf
+    for s in range(start, end):
+        for j in (0, 2):
+            x = (seg[s, j] - ox) * inv_pitch_x
+            y = (seg[s, j + 1] - oy) * inv_pitch_y
+            xmin, xmax = min(xmin, x), max(xmax, x)
+            ymin, ymax = min(ymin, y), max(ymax, y)
+    c0 = max(int(math.floor(xmin)) - 1, 0)
+    r0 = max(int(math.floor(ymin)) - 1, 0)
+    c1 = min(int(math.ceil(xmax)) + 1, cols)
+    r1 = min(int(math.ceil(ymax)) + 1, rows)
+    return r0, max(r1, r0), c0, max(c1, c0)
+
+
+@njit(cache=True, nogil=True)
+def _rasterise_layer_grey(
+    seg, start, end, ox: float, oy: float, inv_pitch_x: float, inv_pitch_y: float, antialias: bool, acc, out
+) -> None:
+    """Straight to 8-bit grey: round(255 coverage), or 255 where coverage >= 1/2.
+
+    ``acc`` must be zero on entry and is left zero (cleared while it is summed), which
+    saves a pass over it per layer.
+    """
     for s in range(start, end):
         _accumulate_line(
             acc,
@@ -195,7 +249,28 @@ def _rasterise_layer(
         total = 0.0
         for c in range(cols):
             total += acc[r, c]
-            out[r, c] = min(abs(total), 1.0)
+            acc[r, c] = 0.0
+            coverage = min(abs(total), 1.0)
+            if antialias:
+                out[r, c] = np.uint8(math.floor(coverage * 255.0 + 0.5))
+            else:
+                out[r, c] = np.uint8(255 if coverage >= 0.5 else 0)
+        acc[r, cols] = 0.0
+        acc[r, cols + 1] = 0.0
+
+
+@njit(cache=True)
+def _section_areas(layer, seg, n_layers) -> np.ndarray:
+    """Exact cross-section area of each layer (shoelace over its directed segments)."""
+    areas = np.zeros(n_layers)
+    for s in range(layer.shape[0]):
+        areas[layer[s]] += 0.5 * (seg[s, 0] * seg[s, 3] - seg[s, 2] * seg[s, 1])
+    return areas
+
+
+def section_areas(layer: np.ndarray, segments: np.ndarray, n_layers: int) -> np.ndarray:
+    """Exact area (in the segments' units squared) of each layer's cross-section."""
+    return _section_areas(layer, segments, n_layers)
 
 
 def rasterise_sections(

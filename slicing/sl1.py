@@ -21,6 +21,7 @@ import io
 import math
 import os
 import struct
+import threading
 import zipfile
 import zlib
 from collections.abc import Iterator
@@ -32,7 +33,14 @@ from typing import BinaryIO
 import numpy as np
 
 from slicing.printers import PrinterProfile
-from slicing.raster import rasterise_sections, section_segments, slice_heights
+from slicing.raster import (
+    _layer_box,
+    _rasterise_layer_grey,
+    rasterise_sections,
+    section_areas,
+    section_segments,
+    slice_heights,
+)
 
 FADED_LAYERS = 10
 FAST_TILT_S = 5.0
@@ -86,19 +94,93 @@ class Slices:
             return np.round(coverage * 255.0).astype(np.uint8)
         return np.where(coverage >= 0.5, 255, 0).astype(np.uint8)
 
+    def layer_grey(self, k: int, scratch: dict | None = None) -> tuple[np.ndarray, int, int]:
+        """Layer k as 8-bit grey on the part of the window it touches, and that part's (row, column).
+
+        Releases the GIL, so layers can be made on threads.
+        """
+        p = self.profile
+        ox, oy = self.col0 * p.pitch_x_mm, self.row0 * p.pitch_y_mm
+        bounds = self._bounds
+        r0, r1, c0, c1 = _layer_box(
+            self._segments,
+            bounds[k],
+            bounds[k + 1],
+            ox,
+            oy,
+            1.0 / p.pitch_x_mm,
+            1.0 / p.pitch_y_mm,
+            self.rows,
+            self.cols,
+        )
+        scratch = {} if scratch is None else scratch
+        acc = scratch.get("acc")
+        if acc is None or acc.shape != (self.rows, self.cols + 2):
+            acc = scratch["acc"] = np.zeros((self.rows, self.cols + 2))
+        out = np.empty((r1 - r0, c1 - c0), dtype=np.uint8)
+        _rasterise_layer_grey(
+            self._segments,
+            bounds[k],
+            bounds[k + 1],
+            ox + c0 * p.pitch_x_mm,
+            oy + r0 * p.pitch_y_mm,
+            1.0 / p.pitch_x_mm,
+            1.0 / p.pitch_y_mm,
+            self.antialias,
+            acc[: r1 - r0, : c1 - c0 + 2],
+            out,
+        )
+        return out, r0, c0
+
+    @property
+    def _bounds(self) -> np.ndarray:
+        cached = getattr(self, "_bounds_cache", None)
+        if cached is None:
+            cached = np.searchsorted(self._layer, np.arange(self.n_layers + 1), side="left")
+            self._bounds_cache = cached
+        return cached
+
+    def section_areas_mm2(self) -> np.ndarray:
+        """Exact area of each layer's cross-section (mm^2)."""
+        return section_areas(self._layer, self._segments, self.n_layers)
+
+    def display_block(self, grey: np.ndarray, row: int = 0, col: int = 0) -> tuple[np.ndarray, int, int]:
+        """Grey pixels (at ``row``, ``col`` of the window) as they appear on the display.
+
+        Returns a view (not a copy) and its top-left (row, column) on the display.
+        """
+        p = self.profile
+        # In the top view T (H_px x W_px, row 0 at the largest Y) the block occupies
+        # rows [a0, a0 + h) and columns [b0, b0 + w).
+        block = grey[::-1]
+        a0 = p.display_pixels_y - (self.row0 + row) - grey.shape[0]
+        b0 = self.col0 + col
+        height, width = p.display_pixels_y, p.display_pixels_x
+        if p.orientation == "portrait":
+            # rot90(T, 1): T[a, b] -> P[W - 1 - b, a]
+            block = np.rot90(block, 1)
+            a0, b0 = width - (b0 + grey.shape[1]), a0
+            height, width = width, height
+        if p.mirror_x:
+            block = block[:, ::-1]
+            b0 = width - (b0 + block.shape[1])
+        if p.mirror_y:
+            block = block[::-1]
+            a0 = height - (a0 + block.shape[0])
+        return block, a0, b0
+
+    def display_shape(self) -> tuple[int, int]:
+        p = self.profile
+        if p.orientation == "portrait":
+            return p.display_pixels_x, p.display_pixels_y
+        return p.display_pixels_y, p.display_pixels_x
+
     def display_image(self, grey_window: np.ndarray) -> np.ndarray:
         """The whole display's image for one layer, oriented and mirrored like PrusaSlicer's."""
-        p = self.profile
-        top = np.zeros((p.display_pixels_y, p.display_pixels_x), dtype=np.uint8)
-        # bed row r (Y upwards) is top-view row H_px - 1 - r
-        r_top = p.display_pixels_y - self.row0 - self.rows
-        top[r_top : r_top + self.rows, self.col0 : self.col0 + self.cols] = grey_window[::-1]
-        image = np.rot90(top, 1) if p.orientation == "portrait" else top
-        if p.mirror_x:
-            image = image[:, ::-1]
-        if p.mirror_y:
-            image = image[::-1]
-        return np.ascontiguousarray(image)
+        block, r0, c0 = self.display_block(grey_window)
+        image = np.zeros(self.display_shape(), dtype=np.uint8)
+        image[r0 : r0 + block.shape[0], c0 : c0 + block.shape[1]] = block
+        return image
 
 
 def slice_mesh(
@@ -168,13 +250,7 @@ def slice_mesh(
     )
 
 
-def encode_png_grey(image: np.ndarray, level: int = 1) -> bytes:
-    """An 8-bit greyscale PNG (filter type 0 on every row, one IDAT), as PrusaSlicer writes."""
-    rows, cols = image.shape
-    raw = np.zeros((rows, cols + 1), dtype=np.uint8)
-    raw[:, 1:] = image
-    data = zlib.compress(raw.tobytes(), level)
-
+def _png(width: int, height: int, idat: bytes) -> bytes:
     def chunk(kind: bytes, body: bytes) -> bytes:
         return (
             struct.pack(">I", len(body))
@@ -183,8 +259,46 @@ def encode_png_grey(image: np.ndarray, level: int = 1) -> bytes:
             + struct.pack(">I", zlib.crc32(kind + body) & 0xFFFFFFFF)
         )
 
-    header = struct.pack(">IIBBBBB", cols, rows, 8, 0, 0, 0, 0)
-    return b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header) + chunk(b"IDAT", data) + chunk(b"IEND", b"")
+    header = struct.pack(">IIBBBBB", width, height, 8, 0, 0, 0, 0)
+    return b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header) + chunk(b"IDAT", idat) + chunk(b"IEND", b"")
+
+
+def _deflate(data) -> bytes:
+    """zlib stream at the fastest level: ISA-L's deflate (several times zlib's speed) when present."""
+    try:
+        from isal import isal_zlib
+    except ImportError:
+        return zlib.compress(data, 1)
+    return isal_zlib.compress(data, 1)
+
+
+def encode_png_grey(image: np.ndarray) -> bytes:
+    """An 8-bit greyscale PNG (filter type 0 on every row, one IDAT), as PrusaSlicer writes."""
+    rows, cols = image.shape
+    raw = np.zeros((rows, cols + 1), dtype=np.uint8)
+    raw[:, 1:] = image
+    return _png(cols, rows, _deflate(raw))
+
+
+_scanlines = threading.local()
+
+
+def encode_display_png(block: np.ndarray, row0: int, col0: int, shape: tuple[int, int]) -> bytes:
+    """The PNG of a display that is dark except for ``block`` at (row0, col0).
+
+    A per-thread scanline buffer (filter byte plus pixels) is reused: only the block's
+    rows are written, and cleared again afterwards.
+    """
+    rows, cols = shape
+    raw = getattr(_scanlines, "raw", None)
+    if raw is None or raw.shape != (rows, cols + 1):
+        raw = _scanlines.raw = np.zeros((rows, cols + 1), dtype=np.uint8)
+    r1, c1 = row0 + block.shape[0], col0 + block.shape[1]
+    raw[row0:r1, 1 + col0 : 1 + c1] = block
+    try:
+        return _png(cols, rows, _deflate(raw))
+    finally:
+        raw[row0:r1, 1 + col0 : 1 + c1] = 0
 
 
 @dataclass
@@ -198,28 +312,31 @@ class LayerStats:
         return sum(1 for a in self.areas_mm2 if a > AREA_FILL_PERCENT / 100.0 * display_area_mm2)
 
 
-def encoded_layers(slices: Slices, workers: int = 2) -> Iterator[tuple[int, bytes, float]]:
-    """(k, PNG bytes, cured area mm^2) per layer, encoded on ``workers`` threads (zlib releases the GIL).
+def encoded_layers(slices: Slices, workers: int = 2) -> Iterator[tuple[int, bytes]]:
+    """(k, PNG bytes) per layer, in order; rasterised and encoded on ``workers`` threads.
 
-    Layers come out in order; the PNG bytes do not depend on the number of workers.
+    The numba rasteriser and the deflate both release the GIL. The bytes do not depend
+    on the number of workers.
     """
-    p = slices.profile
-    pixel_area = p.pitch_x_mm * p.pitch_y_mm
+    local = threading.local()
+    shape = slices.display_shape()
 
-    def encode(grey: np.ndarray) -> bytes:
-        return encode_png_grey(slices.display_image(grey))
+    def make(k: int) -> bytes:
+        scratch = getattr(local, "scratch", None)
+        if scratch is None:
+            scratch = local.scratch = {}
+        block, r0, c0 = slices.display_block(*slices.layer_grey(k, scratch))
+        return encode_display_png(block, r0, c0, shape)
 
     with ThreadPoolExecutor(max_workers=max(1, workers)) as pool:
-        pending = []
-        for k, cov in slices.coverages():
-            grey = slices.grey(cov)
-            area = float(grey.sum(dtype=np.int64)) / 255.0 * pixel_area
-            pending.append((k, pool.submit(encode, grey), area))
-            if len(pending) > 2 * workers:
-                k0, future, a0 = pending.pop(0)
-                yield k0, future.result(), a0
-        for k0, future, a0 in pending:
-            yield k0, future.result(), a0
+        pending: list = []
+        for k in range(slices.n_layers):
+            pending.append((k, pool.submit(make, k)))
+            if len(pending) > 4 * workers:
+                k0, future = pending.pop(0)
+                yield k0, future.result()
+        for k0, future in pending:
+            yield k0, future.result()
 
 
 def _timestamp() -> tuple[tuple[int, ...], str]:
@@ -282,13 +399,11 @@ def write_sl1(stream: BinaryIO, slices: Slices, job_name: str, workers: int = 2)
     """
     p = slices.profile
     stamp, stamp_text = _timestamp()
-    # config.ini comes first in the archive and needs the layers' areas: a cheap first
-    # pass rasterises them (well under a millisecond a layer) before the layers are encoded.
-    pixel_area = p.pitch_x_mm * p.pitch_y_mm
-    areas = [
-        float(slices.grey(cov).sum(dtype=np.int64)) / 255.0 * pixel_area for _, cov in slices.coverages()
-    ]
-    stats = LayerStats(areas_mm2=areas, volume_ml=sum(areas) * slices.layer_height_mm / 1000.0)
+    # config.ini comes first in the archive and needs the layers' areas: exact section
+    # areas, from the segments, before any layer is rasterised.
+    areas = [float(a) for a in slices.section_areas_mm2()]
+    thickness = [p.initial_layer_height_mm] + [slices.layer_height_mm] * (len(areas) - 1)
+    stats = LayerStats(areas_mm2=areas, volume_ml=float(np.dot(areas, thickness)) / 1000.0)
     n_slow = stats.n_slow(p.display_width_mm * p.display_height_mm)
     from importlib.metadata import version
 
@@ -321,7 +436,7 @@ def write_sl1(stream: BinaryIO, slices: Slices, job_name: str, workers: int = 2)
             info = zipfile.ZipInfo(name, date_time=stamp)
             info.compress_type = zipfile.ZIP_DEFLATED
             archive.writestr(info, text.encode("utf-8"))
-        for k, png, _ in encoded_layers(slices, workers):
+        for k, png in encoded_layers(slices, workers):
             info = zipfile.ZipInfo(f"{job_name}{k:05d}.png", date_time=stamp)
             info.compress_type = zipfile.ZIP_DEFLATED
             archive.writestr(info, png, compresslevel=1)

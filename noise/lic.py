@@ -31,25 +31,30 @@ _BANDS = 4  # fixed, so results do not depend on the thread count
 
 
 @njit(cache=True, inline="always")
-def _field(u: np.ndarray, v: np.ndarray, x: float, y: float) -> tuple[float, float, bool]:
-    """Unit field direction at pixel coordinates (x, y) (pixel centres at integers)."""
-    ny, nx = u.shape
-    if not (x >= -0.5 and x <= nx - 0.5 and y >= -0.5 and y <= ny - 0.5):
-        return 0.0, 0.0, False
+def _bilinear(a: np.ndarray, x: float, y: float) -> float:
+    """Bilinear value of ``a`` at (x, y) in pixel units (centres at integers), clamped to the image."""
+    ny, nx = a.shape
     xc = min(max(x, 0.0), nx - 1.0)
     yc = min(max(y, 0.0), ny - 1.0)
-    i0 = min(int(xc), nx - 2) if nx > 1 else 0
-    j0 = min(int(yc), ny - 2) if ny > 1 else 0
+    i0 = min(int(xc), max(nx - 2, 0))
+    j0 = min(int(yc), max(ny - 2, 0))
     i1 = min(i0 + 1, nx - 1)
     j1 = min(j0 + 1, ny - 1)
     fx = xc - i0
     fy = yc - j0
-    a = u[j0, i0] * (1 - fx) + u[j0, i1] * fx
-    b = u[j1, i0] * (1 - fx) + u[j1, i1] * fx
-    du = a * (1 - fy) + b * fy
-    a = v[j0, i0] * (1 - fx) + v[j0, i1] * fx
-    b = v[j1, i0] * (1 - fx) + v[j1, i1] * fx
-    dv = a * (1 - fy) + b * fy
+    top = a[j0, i0] * (1 - fx) + a[j0, i1] * fx
+    bottom = a[j1, i0] * (1 - fx) + a[j1, i1] * fx
+    return top * (1 - fy) + bottom * fy
+
+
+@njit(cache=True, inline="always")
+def _field(u: np.ndarray, v: np.ndarray, x: float, y: float) -> tuple[float, float, bool]:
+    """Unit field direction at pixel coordinates (x, y); not ok outside the image or at a zero."""
+    ny, nx = u.shape
+    if not (x >= -0.5 and x <= nx - 0.5 and y >= -0.5 and y <= ny - 0.5):
+        return 0.0, 0.0, False
+    du = _bilinear(u, x, y)
+    dv = _bilinear(v, x, y)
     norm = math.sqrt(du * du + dv * dv)
     if not norm > 1e-12:  # also catches NaN
         return 0.0, 0.0, False
@@ -82,18 +87,7 @@ def _step(u, v, x: float, y: float, h: float, rk4: bool) -> tuple[float, float, 
 @njit(cache=True, inline="always")
 def _sample(texture: np.ndarray, x: float, y: float) -> float:
     """Bilinear texture value at (x, y), clamped to the image."""
-    ny, nx = texture.shape
-    xc = min(max(x, 0.0), nx - 1.0)
-    yc = min(max(y, 0.0), ny - 1.0)
-    i0 = min(int(xc), max(nx - 2, 0))
-    j0 = min(int(yc), max(ny - 2, 0))
-    i1 = min(i0 + 1, nx - 1)
-    j1 = min(j0 + 1, ny - 1)
-    fx = xc - i0
-    fy = yc - j0
-    a = texture[j0, i0] * (1 - fx) + texture[j0, i1] * fx
-    b = texture[j1, i0] * (1 - fx) + texture[j1, i1] * fx
-    return a * (1 - fy) + b * fy
+    return _bilinear(texture, x, y)
 
 
 @njit(cache=True, parallel=True)

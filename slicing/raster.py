@@ -178,10 +178,8 @@ def _accumulate_line(acc, x0: float, y0: float, x1: float, y1: float) -> None:
 
 
 @njit(cache=True, nogil=True)
-def _accumulate_layer(
-    seg, start, end, ox: float, oy: float, inv_pitch_x: float, inv_pitch_y: float, acc
-) -> None:
-    acc[:, :] = 0.0
+def _add_segments(seg, start, end, ox: float, oy: float, inv_pitch_x: float, inv_pitch_y: float, acc) -> None:
+    """Accumulate segments start..end-1, mapped from mm to the pixels of a window at (ox, oy)."""
     for s in range(start, end):
         _accumulate_line(
             acc,
@@ -190,6 +188,14 @@ def _accumulate_layer(
             (seg[s, 2] - ox) * inv_pitch_x,
             (seg[s, 3] - oy) * inv_pitch_y,
         )
+
+
+@njit(cache=True, nogil=True)
+def _accumulate_layer(
+    seg, start, end, ox: float, oy: float, inv_pitch_x: float, inv_pitch_y: float, acc
+) -> None:
+    acc[:, :] = 0.0
+    _add_segments(seg, start, end, ox, oy, inv_pitch_x, inv_pitch_y, acc)
 
 
 @njit(cache=True, nogil=True)
@@ -236,14 +242,7 @@ def _rasterise_layer_grey(
     ``acc`` must be zero on entry and is left zero (cleared while it is summed), which
     saves a pass over it per layer.
     """
-    for s in range(start, end):
-        _accumulate_line(
-            acc,
-            (seg[s, 0] - ox) * inv_pitch_x,
-            (seg[s, 1] - oy) * inv_pitch_y,
-            (seg[s, 2] - ox) * inv_pitch_x,
-            (seg[s, 3] - oy) * inv_pitch_y,
-        )
+    _add_segments(seg, start, end, ox, oy, inv_pitch_x, inv_pitch_y, acc)
     rows, cols = out.shape
     for r in range(rows):
         total = 0.0

@@ -184,3 +184,26 @@ def test_layers_match_prusaslicer(tmp_path, lshape):
         assert ((a > 127) & (b > 127)).sum() / union > 0.998
         edge = ((a > 0) & (a < 255)) | ((b > 0) & (b < 255))
         assert np.abs(a - b)[edge].mean() < 2.0
+
+
+def test_round_trip_gives_back_the_rendered_layers(lshape):
+    slices = slice_mesh(lshape.vertices, lshape.faces, SL1)
+    expected = [slices.display_image(slices.grey(coverage)).copy() for _, coverage in slices.coverages()]
+    buffer = io.BytesIO()
+    write_sl1(buffer, slices, "part")
+    buffer.seek(0)
+    _, layers = read_sl1(buffer)
+    assert len(layers) == len(expected)
+    for got, want in zip(layers, expected, strict=True):
+        np.testing.assert_array_equal(got, want)
+
+
+def test_bad_archives():
+    with pytest.raises(ValueError, match="expected an .sl1 archive"):
+        read_sl1(io.BytesIO(b"not a zip"))
+    empty = io.BytesIO()
+    with zipfile.ZipFile(empty, "w") as archive:
+        archive.writestr("hello.txt", "x")
+    empty.seek(0)
+    with pytest.raises(ValueError, match="expected config.ini"):
+        read_sl1(empty)

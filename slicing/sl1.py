@@ -280,25 +280,57 @@ def encode_png_grey(image: np.ndarray) -> bytes:
     return _png(cols, rows, _deflate(raw))
 
 
-_scanlines = threading.local()
+_ZERO_ROWS: dict[tuple[int, int], bytes] = {}
+
+
+def _zero_rows(n_rows: int, row_bytes: int) -> bytes:
+    """Raw deflate of ``n_rows`` all-dark scanlines, ending on a full flush (so it can be spliced)."""
+    key = (n_rows, row_bytes)
+    chunk = _ZERO_ROWS.get(key)
+    if chunk is None:
+        compressor = zlib.compressobj(1, zlib.DEFLATED, -15)
+        chunk = compressor.compress(bytes(n_rows * row_bytes)) + compressor.flush(zlib.Z_FULL_FLUSH)
+        _ZERO_ROWS[key] = chunk
+    return chunk
+
+
+def _adler32_of_zeros(adler: int, length: int) -> int:
+    # Zero bytes leave the running sum a unchanged and add `length` times a to b.
+    a, b = adler & 0xFFFF, adler >> 16
+    return (((b + length * a) % 65521) << 16) | a
 
 
 def encode_display_png(block: np.ndarray, row0: int, col0: int, shape: tuple[int, int]) -> bytes:
     """The PNG of a display that is dark except for ``block`` at (row0, col0).
 
-    A per-thread scanline buffer (filter byte plus pixels) is reused: only the block's
-    rows are written, and cleared again afterwards.
+    The zlib stream is spliced from parts that are each compressed on their own and end
+    on a full flush: cached chunks for the dark rows above and below, and the rows that
+    hold the part. The adler-32 of the dark rows is computed in closed form. Only the
+    part's rows are ever compressed, which is what makes layers cheap.
     """
+    from isal import isal_zlib
+
     rows, cols = shape
-    raw = getattr(_scanlines, "raw", None)
-    if raw is None or raw.shape != (rows, cols + 1):
-        raw = _scanlines.raw = np.zeros((rows, cols + 1), dtype=np.uint8)
-    r1, c1 = row0 + block.shape[0], col0 + block.shape[1]
-    raw[row0:r1, 1 + col0 : 1 + c1] = block
-    try:
-        return _png(cols, rows, _deflate(raw))
-    finally:
-        raw[row0:r1, 1 + col0 : 1 + c1] = 0
+    row_bytes = cols + 1
+    height, width = block.shape
+    pieces = [b"\x78\x01"]
+    adler = 1
+    if row0 > 0:
+        pieces.append(_zero_rows(row0, row_bytes))
+        adler = _adler32_of_zeros(adler, row0 * row_bytes)
+    if height > 0:
+        raw = np.zeros((height, row_bytes), dtype=np.uint8)
+        raw[:, 1 + col0 : 1 + col0 + width] = block
+        data = raw.tobytes()
+        compressor = isal_zlib.compressobj(1, isal_zlib.DEFLATED, -15)
+        pieces += [compressor.compress(data), compressor.flush(isal_zlib.Z_FULL_FLUSH)]
+        adler = zlib.adler32(data, adler)
+    tail = rows - row0 - height
+    if tail > 0:
+        pieces.append(_zero_rows(tail, row_bytes))
+        adler = _adler32_of_zeros(adler, tail * row_bytes)
+    pieces += [b"\x03\x00", struct.pack(">I", adler)]  # an empty final block, then the checksum
+    return _png(cols, rows, b"".join(pieces))
 
 
 @dataclass

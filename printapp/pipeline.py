@@ -38,7 +38,7 @@ from printapp.texture import (
     relief_heightfield,
 )
 from render.microfacet import SlopeRoughness, slope_roughness
-from slicing import Slices, slice_mesh, write_sl1
+from slicing import Slices, slice_heightfield, slice_mesh, write_sl1
 from slicing.printed import pixel_centres_mm, printed_heights
 
 DEFAULT_DESIGN = files("printapp").joinpath("data/default_design.toml")
@@ -268,9 +268,22 @@ def run_design(
         slices = printed = None
         if solid.ok and fits_printer(design, solid):
             with timer.stage("slice", "slicing for the printer"):
-                slices = slice_mesh(
-                    mesh.vertices, mesh.faces, design.printer.profile, layer_height_mm=design.layer_height_mm
-                )
+                profile_ = design.printer.profile
+                if isinstance(design.base, TileBase):
+                    # Straight from the height field: the same layers as slicing the slab, no mesh.
+                    patch = relief.patch
+                    slices = slice_heightfield(
+                        patch.heights_mm,
+                        patch.pitch_x_mm,
+                        patch.pitch_y_mm,
+                        design.base.thickness_mm,
+                        profile_,
+                        layer_height_mm=design.layer_height_mm,
+                    )
+                else:
+                    slices = slice_mesh(
+                        mesh.vertices, mesh.faces, profile_, layer_height_mm=design.layer_height_mm
+                    )
             if isinstance(design.base, TileBase):
                 with timer.stage("as_printed", "as-printed relief"):
                     printed = as_printed(relief.patch, slices, design.base.thickness_mm)

@@ -5,7 +5,7 @@ Pure numerics; the .sl1 writer writes to a stream its caller opens. No printing.
 
 from slicing.printers import PRINTERS, PrinterProfile, custom_printer
 from slicing.raster import rasterise_sections, section_segments, slice_heights
-from slicing.sl1 import Slices, encode_png_grey, read_sl1, slice_mesh, write_sl1
+from slicing.sl1 import Slices, encode_png_grey, read_sl1, slice_heightfield, slice_mesh, write_sl1
 
 __all__ = [
     "PRINTERS",
@@ -16,6 +16,7 @@ __all__ = [
     "rasterise_sections",
     "read_sl1",
     "section_segments",
+    "slice_heightfield",
     "slice_heights",
     "slice_mesh",
     "write_sl1",

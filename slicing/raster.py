@@ -89,6 +89,143 @@ def _segments(V, F, N, heights, tri_z_min, tri_z_max, offsets, layer, seg) -> No
             out += 1
 
 
+@njit(cache=True, inline="always")
+def _straddle(z0: float, z1: float, z2: float, heights):
+    """Slice planes [lo, hi) that a triangle with these vertex heights straddles."""
+    zmin = min(z0, min(z1, z2))
+    zmax = max(z0, max(z1, z2))
+    return np.searchsorted(heights, zmin, side="left"), np.searchsorted(heights, zmax, side="left")
+
+
+@njit(cache=True, inline="always")
+def _emit(tri, heights, lo, hi, layer, seg, out) -> np.int64:
+    """Write the sections of one triangle (3 x 3 vertex array) at planes lo..hi-1 from index ``out``."""
+    nx_ = (tri[1, 1] - tri[0, 1]) * (tri[2, 2] - tri[0, 2]) - (tri[1, 2] - tri[0, 2]) * (
+        tri[2, 1] - tri[0, 1]
+    )
+    ny_ = (tri[1, 2] - tri[0, 2]) * (tri[2, 0] - tri[0, 0]) - (tri[1, 0] - tri[0, 0]) * (
+        tri[2, 2] - tri[0, 2]
+    )
+    for k in range(lo, hi):
+        z = heights[k]
+        px0 = py0 = px1 = py1 = 0.0
+        n = 0
+        for i0, i1 in ((0, 1), (1, 2), (2, 0)):
+            z0, z1 = tri[i0, 2], tri[i1, 2]
+            if (z0 >= z) != (z1 >= z) and n < 2:
+                s = (z - z0) / (z1 - z0)
+                x = tri[i0, 0] + s * (tri[i1, 0] - tri[i0, 0])
+                y = tri[i0, 1] + s * (tri[i1, 1] - tri[i0, 1])
+                if n == 0:
+                    px0, py0 = x, y
+                else:
+                    px1, py1 = x, y
+                n += 1
+        layer[out] = k
+        if (px1 - px0) * -ny_ + (py1 - py0) * nx_ >= 0:
+            seg[out, 0], seg[out, 1], seg[out, 2], seg[out, 3] = px0, py0, px1, py1
+        else:
+            seg[out, 0], seg[out, 1], seg[out, 2], seg[out, 3] = px1, py1, px0, py0
+        out += 1
+    return out
+
+
+@njit(cache=True, inline="always")
+def _ring_vertex(idx: int, nx: int, ny: int) -> tuple[int, int]:
+    """(row, column) of border vertex ``idx``, counter-clockwise from (0, 0), as the slab's walls use."""
+    if idx < nx:
+        return 0, idx
+    if idx < nx + ny - 1:
+        return idx - nx + 1, nx - 1
+    if idx < 2 * nx + ny - 2:
+        return ny - 1, nx - 1 - (idx - (nx + ny - 2))
+    return ny - 1 - (idx - (2 * nx + ny - 3)), 0
+
+
+@njit(cache=True)
+def _heightfield_triangles(h, dx, dy, base, ox, oy, shift, heights, layer, seg, count_only: bool) -> np.int64:
+    """Visit the slab's triangles (top, then walls) straight from the grid; count or emit their sections."""
+    ny, nx = h.shape
+    tri = np.empty((3, 3))
+    out = 0
+
+    def vertex(i, r, c, z):
+        tri[i, 0] = (ox + c * dx) + shift[0]
+        tri[i, 1] = (oy + r * dy) + shift[1]
+        tri[i, 2] = z + shift[2]
+
+    for r in range(ny - 1):
+        for c in range(nx - 1):
+            for upper in range(2):
+                if upper == 0:  # v00, v10, v11
+                    vertex(0, r, c, base + h[r, c])
+                    vertex(1, r, c + 1, base + h[r, c + 1])
+                    vertex(2, r + 1, c + 1, base + h[r + 1, c + 1])
+                else:  # v00, v11, v01
+                    vertex(0, r, c, base + h[r, c])
+                    vertex(1, r + 1, c + 1, base + h[r + 1, c + 1])
+                    vertex(2, r + 1, c, base + h[r + 1, c])
+                lo, hi = _straddle(tri[0, 2], tri[1, 2], tri[2, 2], heights)
+                if count_only:
+                    out += max(hi - lo, 0)
+                else:
+                    out = _emit(tri, heights, lo, hi, layer, seg, out)
+    # Walls along the border, counter-clockwise seen from above: (a_low, b_low, b), (a_low, b, a).
+    n_ring = 2 * (nx - 1) + 2 * (ny - 1)
+    for k in range(n_ring):
+        ar, ac = _ring_vertex(k, nx, ny)
+        br, bc = _ring_vertex((k + 1) % n_ring, nx, ny)
+        for part in range(2):
+            if part == 0:
+                vertex(0, ar, ac, 0.0)
+                vertex(1, br, bc, 0.0)
+                vertex(2, br, bc, base + h[br, bc])
+            else:
+                vertex(0, ar, ac, 0.0)
+                vertex(1, br, bc, base + h[br, bc])
+                vertex(2, ar, ac, base + h[ar, ac])
+            lo, hi = _straddle(tri[0, 2], tri[1, 2], tri[2, 2], heights)
+            if count_only:
+                out += max(hi - lo, 0)
+            else:
+                out = _emit(tri, heights, lo, hi, layer, seg, out)
+    return out
+
+
+def heightfield_segments(
+    heights_mm: np.ndarray,
+    pitch_x_mm: float,
+    pitch_y_mm: float,
+    base_thickness_mm: float,
+    origin_x_mm: float,
+    origin_y_mm: float,
+    shift_mm: np.ndarray,
+    slice_z: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Directed section segments of a height-field slab (see :func:`section_segments`), without a mesh."""
+    h = np.ascontiguousarray(heights_mm, dtype=np.float64)
+    z = np.ascontiguousarray(slice_z, dtype=np.float64)
+    shift = np.ascontiguousarray(shift_mm, dtype=np.float64)
+    dummy_layer = np.empty(0, dtype=np.int64)
+    dummy_seg = np.empty((0, 4))
+    args = (
+        h,
+        float(pitch_x_mm),
+        float(pitch_y_mm),
+        float(base_thickness_mm),
+        float(origin_x_mm),
+        float(origin_y_mm),
+        shift,
+        z,
+    )
+    count = _heightfield_triangles(*args, dummy_layer, dummy_seg, True)
+    layer = np.empty(count, dtype=np.int64)
+    seg = np.empty((count, 4))
+    _heightfield_triangles(*args, layer, seg, False)
+    order = np.argsort(layer, kind="stable")
+    return layer[order], seg[order]
+
+
 def section_segments(
     vertices: np.ndarray, faces: np.ndarray, heights: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:

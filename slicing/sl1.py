@@ -36,6 +36,7 @@ from slicing.printers import PrinterProfile
 from slicing.raster import (
     _layer_box,
     _rasterise_layer_grey,
+    heightfield_segments,
     rasterise_sections,
     section_areas,
     section_segments,
@@ -203,13 +204,69 @@ def slice_mesh(
     tris = np.asarray(faces, dtype=np.int64)
     if verts.size == 0 or tris.size == 0:
         raise ValueError("model: expected a mesh with triangles, found none")
+    lh = _check_layer_height(profile, layer_height_mm)
+    lo, hi = verts.min(axis=0), verts.max(axis=0)
+    shift = _placement(lo, hi, profile)
+    heights = slice_heights(float(hi[2] - lo[2]), lh, profile.initial_layer_height_mm)
+    layer, segments = section_segments(verts + shift, tris, heights)
+    return _slices(profile, heights, lh, shift, lo, hi, antialias, layer, segments)
+
+
+def slice_heightfield(
+    heights_mm: np.ndarray,
+    pitch_x_mm: float,
+    pitch_y_mm: float,
+    base_thickness_mm: float,
+    profile: PrinterProfile,
+    *,
+    origin_mm: tuple[float, float] = (0.0, 0.0),
+    layer_height_mm: float | None = None,
+    antialias: bool | None = None,
+) -> Slices:
+    """Slice a relief tile straight from its height field, without building a mesh.
+
+    The solid is the closed slab that :func:`printapp.mesh.slab_from_heightfield` would
+    build (top triangulated along each cell's v00-v11 diagonal, vertical walls, floor at
+    z = 0); its sections are computed triangle by triangle from the grid, so the layers
+    are the same as slicing that mesh, at a fraction of the memory for large maps.
+    """
+    h = np.ascontiguousarray(heights_mm, dtype=np.float64)
+    if h.ndim != 2 or min(h.shape) < 2 or not np.all(np.isfinite(h)):
+        raise ValueError("heights: expected a finite 2-D array of at least 2 x 2 samples")
+    if not (pitch_x_mm > 0 and pitch_y_mm > 0 and base_thickness_mm > 0):
+        raise ValueError("pitch, base thickness: expected positive values")
+    if float(h.min()) + base_thickness_mm <= 0:
+        raise ValueError("heights: the tile's top must stay above z = 0")
+    lh = _check_layer_height(profile, layer_height_mm)
+    ny, nx = h.shape
+    lo = np.array([origin_mm[0], origin_mm[1], 0.0])
+    hi = np.array(
+        [
+            origin_mm[0] + (nx - 1) * pitch_x_mm,
+            origin_mm[1] + (ny - 1) * pitch_y_mm,
+            base_thickness_mm + h.max(),
+        ]
+    )
+    shift = _placement(lo, hi, profile)
+    heights = slice_heights(float(hi[2]), lh, profile.initial_layer_height_mm)
+    layer, segments = heightfield_segments(
+        h, pitch_x_mm, pitch_y_mm, base_thickness_mm, origin_mm[0], origin_mm[1], shift, heights
+    )
+    return _slices(profile, heights, lh, shift, lo, hi, antialias, layer, segments)
+
+
+def _check_layer_height(profile: PrinterProfile, layer_height_mm: float | None) -> float:
     lh = profile.layer_height_mm if layer_height_mm is None else float(layer_height_mm)
     if not profile.min_layer_height_mm - 1e-12 <= lh <= profile.max_layer_height_mm + 1e-12:
         raise ValueError(
             f"layer height: {lh:g} mm is outside what {profile.label} can print "
             f"([{profile.min_layer_height_mm:g}, {profile.max_layer_height_mm:g}] mm)"
         )
-    lo, hi = verts.min(axis=0), verts.max(axis=0)
+    return lh
+
+
+def _placement(lo: np.ndarray, hi: np.ndarray, profile: PrinterProfile) -> np.ndarray:
+    """The shift that drops the part to z = 0 and centres it on the display; refuses parts too large."""
     size = hi - lo
     w, d = profile.display_width_mm, profile.display_height_mm
     if size[0] > w or size[1] > d or size[2] > profile.max_print_height_mm:
@@ -226,15 +283,16 @@ def slice_mesh(
             f"model: {size[0]:.2f} x {size[1]:.2f} x {size[2]:.2f} mm does not fit the {profile.label} "
             f"({w:g} x {d:g} x {profile.max_print_height_mm:g} mm): too large in {', '.join(over)}"
         )
-    shift = -np.array([(lo[0] + hi[0]) / 2 - w / 2, (lo[1] + hi[1]) / 2 - d / 2, lo[2]])
-    placed = verts + shift
-    heights = slice_heights(float(size[2]), lh, profile.initial_layer_height_mm)
-    layer, segments = section_segments(placed, tris, heights)
+    return -np.array([(lo[0] + hi[0]) / 2 - w / 2, (lo[1] + hi[1]) / 2 - d / 2, lo[2]])
+
+
+def _slices(profile, heights, lh, shift, lo, hi, antialias, layer, segments) -> Slices:
     px, py = profile.pitch_x_mm, profile.pitch_y_mm
-    col0 = max(int(math.floor(placed[:, 0].min() / px)) - 1, 0)
-    col1 = min(int(math.ceil(placed[:, 0].max() / px)) + 1, profile.display_pixels_x)
-    row0 = max(int(math.floor(placed[:, 1].min() / py)) - 1, 0)
-    row1 = min(int(math.ceil(placed[:, 1].max() / py)) + 1, profile.display_pixels_y)
+    placed_lo, placed_hi = lo + shift, hi + shift
+    col0 = max(int(math.floor(placed_lo[0] / px)) - 1, 0)
+    col1 = min(int(math.ceil(placed_hi[0] / px)) + 1, profile.display_pixels_x)
+    row0 = max(int(math.floor(placed_lo[1] / py)) - 1, 0)
+    row1 = min(int(math.ceil(placed_hi[1] / py)) + 1, profile.display_pixels_y)
     return Slices(
         profile=profile,
         heights_mm=heights,

@@ -207,3 +207,22 @@ def test_bad_archives():
     empty.seek(0)
     with pytest.raises(ValueError, match="expected config.ini"):
         read_sl1(empty)
+
+
+def test_heightfield_path_gives_the_same_archive_as_the_slab_mesh():
+    from printapp.design import design_from_dict
+    from printapp.mesh import slab_from_heightfield
+    from printapp.texture import relief_heightfield
+    from slicing import slice_heightfield
+
+    design = design_from_dict({"base": {"width_mm": 7.0, "depth_mm": 5.0}, "relief": {"pitch_mm": 0.1}})
+    field = relief_heightfield(design)
+    mesh = slab_from_heightfield(field, 2.0)
+    via_mesh, via_field = io.BytesIO(), io.BytesIO()
+    write_sl1(via_mesh, slice_mesh(mesh.vertices, mesh.faces, SL1), "tile")
+    write_sl1(
+        via_field, slice_heightfield(field.heights_mm, field.pitch_x_mm, field.pitch_y_mm, 2.0, SL1), "tile"
+    )
+    assert via_mesh.getvalue() == via_field.getvalue()
+    with pytest.raises(ValueError, match="top must stay above"):
+        slice_heightfield(np.full((3, 3), -5.0), 0.1, 0.1, 2.0, SL1)

@@ -242,6 +242,183 @@ def printers() -> None:
     _out.print(table)
 
 
+def _flatten_order(flatten: str | None) -> int | None:
+    if flatten is None:
+        return None
+    if flatten == "plane":
+        return 1
+    kind, _, degree = flatten.partition(":")
+    if kind == "poly" and degree.isdigit() and 0 <= int(degree) <= 8:
+        return int(degree)
+    raise PrintappError(f"--flatten: expected 'plane' or 'poly:K' with K in 0..8, got '{flatten}'")
+
+
+def _load_corrected(
+    path: Path,
+    width_mm: float | None,
+    depth_mm: float | None,
+    pitch_mm: float | None,
+    remove_outliers: bool,
+    flatten: str | None,
+):
+    """Read a height map and apply the requested corrections; missing data is always filled."""
+    import numpy as np
+
+    from printapp.topography import fill_masked, level, mask_outliers, read_heightmap
+
+    order = _flatten_order(flatten)
+    topo = read_heightmap(path, width_mm=width_mm, depth_mm=depth_mm, pitch_mm=pitch_mm)
+    heights = topo.heights_mm
+    mask = mask_outliers(heights) if remove_outliers else ~np.isfinite(heights)
+    heights = fill_masked(heights, mask)
+    if order is not None:
+        heights = level(heights, order)
+    return heights, topo.pitch_x_mm, topo.pitch_y_mm, int(mask.sum())
+
+
+@app.command()
+def heightmap(
+    source: Annotated[Path, typer.Argument(help="Height map: .png .tif .npy .al3d .x3p .gwy")],
+    out: Annotated[
+        Path | None, typer.Option("--out", "-o", help="Write the corrected map (.npy, mm).")
+    ] = None,
+    width_mm: Annotated[float | None, typer.Option(help="Images: physical width (mm).")] = None,
+    depth_mm: Annotated[
+        float | None, typer.Option(help="Images: physical depth, white minus black (mm).")
+    ] = None,
+    pitch_mm: Annotated[float | None, typer.Option(help=".npy: sample spacing (mm).")] = None,
+    remove_outliers: Annotated[
+        bool, typer.Option(help="Mask samples beyond 5 robust sigmas, then fill.")
+    ] = False,
+    flatten: Annotated[str | None, typer.Option(help="Level the base: 'plane' or 'poly:K'.")] = None,
+    json_out: Annotated[Path | None, typer.Option("--json", help="Write the parameters as JSON.")] = None,
+) -> None:
+    """Correct a measured or image height map and print its ISO 25178 roughness parameters."""
+    import io
+    import json
+
+    import numpy as np
+    from rich.table import Table
+
+    from printapp.exporters import atomic_write_bytes
+    from printapp.topography import roughness
+
+    try:
+        if out is not None and out.suffix.lower() != ".npy":
+            raise PrintappError(f"{out}: expected an output file ending in .npy")
+        heights, px, py, filled = _load_corrected(
+            source, width_mm, depth_mm, pitch_mm, remove_outliers, flatten
+        )
+        r = roughness(heights, px, py)
+        values = {
+            "Sa_um": r.sa_um,
+            "Sq_um": r.sq_um,
+            "Sz_um": r.sz_um,
+            "Ssk": r.ssk,
+            "Sku": r.sku,
+            "Sdq": r.sdq,
+            "Sdr_percent": r.sdr_percent,
+        }
+        summary = {
+            "file": str(source),
+            "samples": list(heights.shape),
+            "pitch_um": [px * 1000, py * 1000],
+            "filled_samples": filled,
+            "flatten": flatten,
+            "parameters": values,
+        }
+        if json_out is not None:
+            atomic_write_bytes(json_out, (json.dumps(summary, indent=2) + "\n").encode())
+        if out is not None:
+            buffer = io.BytesIO()
+            np.save(buffer, heights)
+            atomic_write_bytes(out, buffer.getvalue())
+    except PrintappError as exc:
+        raise _fail(exc) from None
+    title = (
+        f"{source.name}: {heights.shape[1]} x {heights.shape[0]} samples, "
+        f"pitch {px * 1000:.4g} x {py * 1000:.4g} um, {filled} filled"
+    )
+    table = Table("parameter", "value", title=title)
+    for name, value in values.items():
+        table.add_row(name, f"{value:.6g}")
+    _out.print(table)
+
+
+@app.command()
+def emboss(
+    source: Annotated[Path, typer.Argument(help="Height map (as for `printapp heightmap`).")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="The closed slab to write (.stl).")],
+    width_mm: Annotated[float | None, typer.Option(help="Physical width (mm); images need it.")] = None,
+    depth_mm: Annotated[
+        float | None, typer.Option(help="Relief depth, white minus black (mm); images need it.")
+    ] = None,
+    base_mm: Annotated[float, typer.Option(help="Solid thickness under the relief (mm).")] = 2.0,
+    pitch_mm: Annotated[
+        float | None, typer.Option(help="Resample to this pitch [the printer's pixel].")
+    ] = None,
+    printer: Annotated[str, typer.Option(help="Printer whose pixel pitch is the default.")] = "prusa-sl1",
+    flatten: Annotated[str | None, typer.Option(help="Level the base first: 'plane' or 'poly:K'.")] = None,
+) -> None:
+    """Turn a height map into a closed, printable slab (the talk's Blender step, as one command).
+
+    The map is low-pass filtered and resampled to the printer's pixel pitch (no more
+    triangles than the printer can print), lifted to start at zero, and closed with walls
+    and a floor.
+    """
+    import numpy as np
+    from scipy.ndimage import gaussian_filter, map_coordinates
+
+    from printapp.exporters import atomic_write_bytes, stl_bytes
+    from printapp.heightfield import HeightField
+    from printapp.mesh import check_solid, slab_from_heightfield
+    from slicing import PRINTERS
+
+    try:
+        if printer not in PRINTERS:
+            raise PrintappError(
+                f"--printer: unknown printer '{printer}', expected one of {', '.join(PRINTERS)}"
+            )
+        if out.suffix.lower() != ".stl":
+            raise PrintappError(f"{out}: expected an output file ending in .stl")
+        if not (base_mm > 0):
+            raise PrintappError(f"--base-mm: expected a positive thickness, got {base_mm}")
+        target = PRINTERS[printer].pitch_mm if pitch_mm is None else pitch_mm
+        if not (target > 0):
+            raise PrintappError(f"--pitch-mm: expected a positive pitch, got {pitch_mm}")
+        heights, px, py, _ = _load_corrected(source, width_mm, depth_mm, None, False, flatten)
+        if source.suffix.lower() in (".npy",):
+            raise PrintappError(
+                f"{source}: give an image or a measured map to emboss (a .npy has no depth scale)"
+            )
+        width, depth = (heights.shape[1] - 1) * px, (heights.shape[0] - 1) * py
+        nx, ny = max(2, round(width / target) + 1), max(2, round(depth / target) + 1)
+        if nx * ny > 16_000_000:
+            raise PrintappError(
+                f"--pitch-mm: {target:g} mm gives {nx} x {ny} samples; expected at most 16 million"
+            )
+        # Anti-alias before decimating: a Gaussian whose sigma is half the new pitch in samples.
+        sigma = (max(0.0, 0.5 * (target / px - 1)), max(0.0, 0.5 * (target / py - 1)))
+        smooth = gaussian_filter(heights, sigma=(sigma[1], sigma[0]), mode="nearest")
+        rows = np.linspace(0, heights.shape[0] - 1, ny)
+        cols = np.linspace(0, heights.shape[1] - 1, nx)
+        rr, cc = np.meshgrid(rows, cols, indexing="ij")
+        resampled = map_coordinates(smooth, [rr, cc], order=1, mode="nearest")
+        resampled -= resampled.min()
+        field = HeightField(resampled, width / (nx - 1), depth / (ny - 1))
+        mesh = slab_from_heightfield(field, base_mm)
+        solid = check_solid(mesh)
+        atomic_write_bytes(out, stl_bytes(mesh.vertices, mesh.faces))
+    except PrintappError as exc:
+        raise _fail(exc) from None
+    sx, sy, sz = solid.size_mm
+    _out.print(
+        f"{source.name}: {nx} x {ny} samples at {field.pitch_x_mm * 1000:.1f} um, "
+        f"{solid.triangles:,} triangles, watertight={solid.watertight}, "
+        f"{sx:.2f} x {sy:.2f} x {sz:.3f} mm; wrote {out}"
+    )
+
+
 @app.command("slice")
 def slice_command(
     model: Annotated[Path, typer.Argument(help="A closed mesh (STL, OBJ, PLY, 3MF ...), in mm.")],

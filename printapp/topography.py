@@ -1,0 +1,327 @@
+"""Measured and image height maps: reading them with their physical scale, correcting them
+the way Gwyddion does, and their ISO 25178 areal roughness parameters.
+
+Formats: 8/16-bit PNG and TIFF images (grey level to height, with a physical width and
+depth from the user), ``.npy`` (heights in mm, with a pitch), Alicona ``.al3d``, ISO
+25178-72 ``.x3p`` and Gwyddion ``.gwy``. Heights come back in mm in a :class:`HeightField`,
+missing data as NaN, and non-square pixels as they are.
+"""
+
+from __future__ import annotations
+
+import math
+import zipfile
+from dataclasses import dataclass
+from pathlib import Path
+from xml.etree import ElementTree
+
+import numpy as np
+
+from printapp.errors import DesignError
+from printapp.heightfield import HeightField
+
+IMAGE_SUFFIXES = (".png", ".tif", ".tiff")
+SUFFIXES = (*IMAGE_SUFFIXES, ".npy", ".al3d", ".x3p", ".gwy")
+
+
+@dataclass(frozen=True)
+class Topography:
+    """Heights (mm; NaN where the instrument saw nothing) on a grid with its pitches (mm)."""
+
+    heights_mm: np.ndarray
+    pitch_x_mm: float
+    pitch_y_mm: float
+
+    def field(self) -> HeightField:
+        """As a HeightField (requires every value to be finite; fill missing data first)."""
+        return HeightField(self.heights_mm, self.pitch_x_mm, self.pitch_y_mm)
+
+
+def _read_al3d(path: Path) -> Topography:
+    raw = path.read_bytes()
+    if not raw.startswith(b"AliconaImaging"):
+        raise DesignError(f"{path}: not an Alicona .al3d file (no AliconaImaging header)")
+    tags: dict[str, str] = {}
+    count = 17
+    for i in range(512):
+        record = raw[17 + 52 * i : 17 + 52 * (i + 1)]
+        if len(record) < 52 or i >= count:
+            break
+        key = record[:20].split(b"\0")[0].decode("latin-1")
+        value = record[20:50].split(b"\0")[0].decode("latin-1", errors="replace")
+        tags[key] = value
+        if key == "TagCount":
+            count = int(value)
+    try:
+        cols, rows = int(tags["Cols"]), int(tags["Rows"])
+        offset = int(tags["DepthImageOffset"])
+        px_m, py_m = float(tags["PixelSizeXMeter"]), float(tags["PixelSizeYMeter"])
+        invalid = np.float32(float(tags.get("InvalidPixelValue", "nan")))
+    except (KeyError, ValueError) as exc:
+        raise DesignError(f"{path}: .al3d header lacks a readable {exc}") from None
+    padded = (cols + 7) // 8 * 8  # rows are padded to a multiple of 8 columns
+    if offset + rows * padded * 4 > len(raw):
+        raise DesignError(f"{path}: .al3d depth image is truncated")
+    depth = np.frombuffer(raw, dtype="<f4", count=rows * padded, offset=offset).reshape(rows, padded)[
+        :, :cols
+    ]
+    heights = np.where(depth == invalid, np.nan, depth.astype(np.float64)) * 1000.0
+    return Topography(heights, px_m * 1000.0, py_m * 1000.0)
+
+
+def _read_x3p(path: Path) -> Topography:
+    try:
+        archive = zipfile.ZipFile(path)
+    except zipfile.BadZipFile:
+        raise DesignError(f"{path}: not an .x3p file (expected a zip archive)") from None
+    with archive:
+        try:
+            root = ElementTree.fromstring(archive.read("main.xml"))
+        except (KeyError, ElementTree.ParseError):
+            raise DesignError(f"{path}: .x3p without a readable main.xml") from None
+
+        def find(tag: str) -> ElementTree.Element | None:
+            return next((e for e in root.iter() if e.tag.split("}")[-1] == tag), None)
+
+        def text(parent: ElementTree.Element | None, tag: str) -> str:
+            node = (
+                None
+                if parent is None
+                else next((e for e in parent.iter() if e.tag.split("}")[-1] == tag), None)
+            )
+            if node is None or node.text is None:
+                raise DesignError(f"{path}: .x3p main.xml lacks {tag}")
+            return node.text.strip()
+
+        if text(find("Record1"), "FeatureType") != "SUR":
+            raise DesignError(f"{path}: only areal (SUR) .x3p surfaces are supported")
+        nx, ny = int(text(find("MatrixDimension"), "SizeX")), int(text(find("MatrixDimension"), "SizeY"))
+        dx_m = float(text(find("CX"), "Increment"))
+        dy_m = float(text(find("CY"), "Increment"))
+        dtype = {"D": "<f8", "F": "<f4", "L": "<i4", "I": "<i2"}.get(text(find("CZ"), "DataType"))
+        if dtype is None:
+            raise DesignError(f"{path}: unsupported .x3p data type")
+        link = text(find("DataLink"), "PointDataLink")
+        data = np.frombuffer(archive.read(link), dtype=dtype)
+        if data.size != nx * ny:
+            raise DesignError(f"{path}: .x3p holds {data.size} points, expected {nx} x {ny}")
+        heights = data.astype(np.float64).reshape(ny, nx)  # x index fastest
+        czinc = find("CZ")
+        if (
+            czinc is not None
+            and any(e.tag.split("}")[-1] == "Increment" for e in czinc.iter())
+            and dtype[1] in "i"
+        ):
+            heights *= float(text(czinc, "Increment"))
+    return Topography(heights * 1000.0, dx_m * 1000.0, dy_m * 1000.0)
+
+
+def _read_gwy(path: Path) -> Topography:
+    import gwyfile
+
+    try:
+        obj = gwyfile.load(str(path))
+        channels = gwyfile.util.get_datafields(obj)
+    except Exception as exc:  # gwyfile raises plain exceptions for malformed files
+        raise DesignError(f"{path}: cannot read the Gwyddion file ({exc})") from None
+    if not channels:
+        raise DesignError(f"{path}: the Gwyddion file holds no data field")
+    field = next(iter(channels.values()))
+    data = np.asarray(field.data, dtype=np.float64)
+    ny, nx = data.shape
+    unit = getattr(field, "si_unit_xy", None)
+    scale = 1000.0 if unit is None or getattr(unit, "unitstr", "m") in ("m", "") else 1.0
+    return Topography(data * scale, field.xreal / nx * scale, field.yreal / ny * scale)
+
+
+def _read_image(
+    path: Path, width_mm: float | None, depth_mm: float | None, height_mm: float | None
+) -> Topography:
+    from PIL import Image, UnidentifiedImageError
+
+    if width_mm is None or depth_mm is None:
+        raise DesignError(
+            f"{path}: an image has no physical scale; "
+            "give --width-mm (its width) and --depth-mm (white minus black)"
+        )
+    try:
+        with Image.open(path) as image:
+            mode = image.mode
+            values = np.asarray(image)
+    except (UnidentifiedImageError, OSError) as exc:
+        raise DesignError(f"{path}: cannot read the image ({exc})") from None
+    if values.ndim == 3:
+        values = values[..., :3].astype(np.float64).mean(axis=2)
+        top = 255.0
+    elif mode in ("I;16", "I;16B", "I;16L", "I") or values.dtype == np.uint16:
+        top = 65535.0
+    elif values.dtype == np.uint8:
+        top = 255.0
+    else:
+        top = None  # floating-point TIFF: heights as they are, scaled by depth over their range
+    values = values.astype(np.float64)
+    if top is None:
+        span = float(np.nanmax(values) - np.nanmin(values)) or 1.0
+        unit = (values - np.nanmin(values)) / span
+    else:
+        unit = values / top
+    rows, cols = unit.shape
+    pitch_x = width_mm / (cols - 1)
+    pitch_y = (height_mm / (rows - 1)) if height_mm is not None else pitch_x
+    # Image row 0 is the far edge seen from above: flip so that row 0 is y = 0.
+    return Topography(unit[::-1] * depth_mm, pitch_x, pitch_y)
+
+
+def read_heightmap(
+    path: str | Path,
+    *,
+    width_mm: float | None = None,
+    depth_mm: float | None = None,
+    length_mm: float | None = None,
+    pitch_mm: float | None = None,
+) -> Topography:
+    """Read a height map with its physical scale.
+
+    Parameters
+    ----------
+    path : path
+        ``.png``, ``.tif``/``.tiff``, ``.npy``, ``.al3d``, ``.x3p`` or ``.gwy``.
+    width_mm, depth_mm : float, optional
+        Images only: physical width (x extent) and depth (height of white over black),
+        the talk's "physical width" and "physical depth".
+    length_mm : float, optional
+        Images only: physical y extent, when the pixels are not square.
+    pitch_mm : float, optional
+        ``.npy`` only: sample spacing (its values are heights in mm).
+
+    Raises
+    ------
+    DesignError
+        Missing or unreadable files, unsupported formats, missing scale.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise DesignError(f"{path}: no such height map")
+    suffix = path.suffix.lower()
+    if suffix not in SUFFIXES:
+        raise DesignError(f"{path}: unsupported height map format; expected one of {', '.join(SUFFIXES)}")
+    for name, value in (("--width-mm", width_mm), ("--depth-mm", depth_mm), ("--pitch-mm", pitch_mm)):
+        if value is not None and not (math.isfinite(value) and value > 0):
+            raise DesignError(f"{name}: expected a positive number, got {value}")
+    if suffix in IMAGE_SUFFIXES:
+        topo = _read_image(path, width_mm, depth_mm, length_mm)
+    elif suffix == ".npy":
+        if pitch_mm is None:
+            raise DesignError(f"{path}: a .npy height map needs --pitch-mm (its values are heights in mm)")
+        try:
+            heights = np.load(path, allow_pickle=False)
+        except ValueError as exc:
+            raise DesignError(f"{path}: cannot read the .npy file ({exc})") from None
+        if heights.ndim != 2:
+            raise DesignError(f"{path}: expected a 2-D array of heights, got shape {heights.shape}")
+        topo = Topography(heights.astype(np.float64), pitch_mm, pitch_mm)
+    elif suffix == ".al3d":
+        topo = _read_al3d(path)
+    elif suffix == ".x3p":
+        topo = _read_x3p(path)
+    else:
+        topo = _read_gwy(path)
+    if min(topo.heights_mm.shape) < 2:
+        raise DesignError(f"{path}: expected at least 2 x 2 samples, got {topo.heights_mm.shape}")
+    if not np.any(np.isfinite(topo.heights_mm)):
+        raise DesignError(f"{path}: every sample is missing (NaN)")
+    return topo
+
+
+# ---------------------------------------------------------------------------------------------
+# Corrections (Gwyddion's "mask outliers", "remove data under mask", "level")
+
+
+def mask_outliers(heights: np.ndarray, threshold: float = 5.0) -> np.ndarray:
+    """Samples farther than ``threshold`` robust standard deviations (1.4826 MAD) from the median."""
+    finite = np.isfinite(heights)
+    median = np.median(heights[finite])
+    mad = 1.4826 * np.median(np.abs(heights[finite] - median))
+    if mad == 0:
+        return ~finite
+    return ~finite | (np.abs(heights - median) > threshold * mad)
+
+
+def fill_masked(heights: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """Replace masked samples by linear interpolation from the valid ones (nearest at the border)."""
+    from scipy.interpolate import griddata
+
+    if not mask.any():
+        return heights.copy()
+    rows, cols = np.indices(heights.shape)
+    known = ~mask
+    points = np.column_stack([rows[known], cols[known]])
+    wanted = np.column_stack([rows[mask], cols[mask]])
+    filled = heights.copy()
+    linear = griddata(points, heights[known], wanted, method="linear")
+    missing = ~np.isfinite(linear)
+    if missing.any():
+        linear[missing] = griddata(points, heights[known], wanted[missing], method="nearest")
+    filled[mask] = linear
+    return filled
+
+
+def level(heights: np.ndarray, order: int = 1, mask: np.ndarray | None = None) -> np.ndarray:
+    """Subtract the least-squares polynomial of total degree ``order`` (1: a plane), fitted where valid."""
+    if order < 0:
+        raise ValueError("order: expected a degree >= 0")
+    rows, cols = heights.shape
+    y, x = np.indices((rows, cols), dtype=np.float64)
+    x = (x - (cols - 1) / 2) / max(cols - 1, 1)
+    y = (y - (rows - 1) / 2) / max(rows - 1, 1)
+    terms = [x**i * y**j for i in range(order + 1) for j in range(order + 1 - i)]
+    valid = np.isfinite(heights) if mask is None else (~mask & np.isfinite(heights))
+    basis = np.stack([t[valid] for t in terms], axis=1)
+    coefficients, *_ = np.linalg.lstsq(basis, heights[valid], rcond=None)
+    surface = sum(c * t for c, t in zip(coefficients, terms, strict=True))
+    return heights - surface
+
+
+# ---------------------------------------------------------------------------------------------
+# ISO 25178 areal parameters (on the mean-removed surface; no S- or L-filter)
+
+
+@dataclass(frozen=True)
+class Roughness:
+    """ISO 25178-2 areal parameters. Heights in µm; Sdq dimensionless; Sdr in %."""
+
+    sa_um: float
+    sq_um: float
+    sz_um: float
+    ssk: float
+    sku: float
+    sdq: float
+    sdr_percent: float
+
+
+def roughness(heights_mm: np.ndarray, pitch_x_mm: float, pitch_y_mm: float) -> Roughness:
+    """Sa, Sq, Sz (max peak to max pit), Ssk, Sku, Sdq (rms gradient), Sdr (developed area ratio).
+
+    The mean is removed first; missing (NaN) samples are skipped. Gradients are central
+    differences (one-sided at the border), Sdr from the gradient at each sample:
+    mean(sqrt(1 + |grad|^2)) - 1.
+    """
+    z = np.asarray(heights_mm, dtype=np.float64)
+    valid = np.isfinite(z)
+    if valid.sum() < 4:
+        raise ValueError("heights: expected at least four valid samples")
+    z = z - z[valid].mean()
+    v = z[valid]
+    sq = math.sqrt(float(np.mean(v**2)))
+    gy, gx = np.gradient(z, pitch_y_mm, pitch_x_mm)
+    g2 = gx**2 + gy**2
+    gvalid = np.isfinite(g2)
+    return Roughness(
+        sa_um=float(np.mean(np.abs(v))) * 1000.0,
+        sq_um=sq * 1000.0,
+        sz_um=float(v.max() - v.min()) * 1000.0,
+        ssk=float(np.mean(v**3)) / sq**3 if sq > 0 else 0.0,
+        sku=float(np.mean(v**4)) / sq**4 if sq > 0 else 0.0,
+        sdq=math.sqrt(float(np.mean(g2[gvalid]))),
+        sdr_percent=float(np.mean(np.sqrt(1.0 + g2[gvalid])) - 1.0) * 100.0,
+    )

@@ -73,6 +73,11 @@ def _run(design_path: Path | None, out_dir: Path, force: bool, quiet: bool) -> N
         raise _fail(exc) from None
     if outcome.render_warning:
         _err.print(f"warning: {outcome.render_warning}")
+    softened = outcome.manifest["relief"].get("softened_vertices", 0)
+    if softened:
+        _err.print(
+            f"warning: the relief was lowered at {softened:,} vertices where it would have folded triangles"
+        )
     m = outcome.manifest
     _out.print(
         f"{design.name}: {m['triangles']:,} triangles, watertight={m['watertight']}, "
@@ -369,7 +374,6 @@ def emboss(
     import numpy as np
     from scipy.ndimage import gaussian_filter, map_coordinates
 
-    from printapp.exporters import atomic_write_bytes, stl_bytes
     from printapp.heightfield import HeightField
     from printapp.mesh import check_solid, slab_from_heightfield
     from slicing import PRINTERS
@@ -379,8 +383,8 @@ def emboss(
             raise PrintappError(
                 f"--printer: unknown printer '{printer}', expected one of {', '.join(PRINTERS)}"
             )
-        if out.suffix.lower() != ".stl":
-            raise PrintappError(f"{out}: expected an output file ending in .stl")
+        if out.suffix.lower() not in (".stl", ".3mf", ".ply", ".obj"):
+            raise PrintappError(f"{out}: expected an output file ending in .stl, .3mf, .ply or .obj")
         if not (base_mm > 0):
             raise PrintappError(f"--base-mm: expected a positive thickness, got {base_mm}")
         target = PRINTERS[printer].pitch_mm if pitch_mm is None else pitch_mm
@@ -408,7 +412,7 @@ def emboss(
         field = HeightField(resampled, width / (nx - 1), depth / (ny - 1))
         mesh = slab_from_heightfield(field, base_mm)
         solid = check_solid(mesh)
-        atomic_write_bytes(out, stl_bytes(mesh.vertices, mesh.faces))
+        _write_model(out, mesh)
     except PrintappError as exc:
         raise _fail(exc) from None
     sx, sy, sz = solid.size_mm
@@ -416,6 +420,93 @@ def emboss(
         f"{source.name}: {nx} x {ny} samples at {field.pitch_x_mm * 1000:.1f} um, "
         f"{solid.triangles:,} triangles, watertight={solid.watertight}, "
         f"{sx:.2f} x {sy:.2f} x {sz:.3f} mm; wrote {out}"
+    )
+
+
+def _write_model(out: Path, mesh, refractive_index: float = 1.5) -> None:
+    """Write a mesh by the output's suffix: .stl, .3mf, .ply, or .obj (with its .mtl)."""
+    from printapp.exporters import (
+        OutputFolder,
+        atomic_write_bytes,
+        obj_files,
+        ply_bytes,
+        stl_bytes,
+        threemf_bytes,
+    )
+
+    suffix = out.suffix.lower()
+    if suffix == ".stl":
+        atomic_write_bytes(out, stl_bytes(mesh.vertices, mesh.faces))
+    elif suffix == ".3mf":
+        atomic_write_bytes(out, threemf_bytes(mesh.vertices, mesh.faces, out.stem))
+    elif suffix == ".ply":
+        atomic_write_bytes(out, ply_bytes(mesh.vertices, mesh.faces))
+    elif suffix == ".obj":
+        obj, mtl = obj_files(mesh.vertices, mesh.faces, out.stem, refractive_index)
+        with OutputFolder(out.parent if str(out.parent) else Path(".")) as folder:
+            folder.write_text(out.name, obj)
+            folder.write_text(f"{out.stem}.mtl", mtl)
+            folder.commit()
+    else:
+        raise PrintappError(f"{out}: expected an output file ending in .stl, .3mf, .ply or .obj")
+
+
+@app.command()
+def displace(
+    model: Annotated[Path, typer.Argument(help="A closed mesh (with --repair, any mesh).")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="Output: .stl, .3mf, .ply or .obj (+ .mtl).")],
+    amplitude_mm: Annotated[float, typer.Option(help="Peak-to-valley height of the relief (mm).")],
+    texture: Annotated[str, typer.Option(help="scn, fbm, turbulence or lic.")] = "fbm",
+    feature_size_mm: Annotated[float, typer.Option(help="Size of one noise cell (mm).")] = 2.0,
+    seed: Annotated[int, typer.Option(help="Random seed.")] = 0,
+    octaves: Annotated[int, typer.Option(help="fbm: octaves.")] = 4,
+    field: Annotated[str, typer.Option(help="lic: direction field (see README).")] = "swirl",
+    length_mm: Annotated[float, typer.Option(help="lic: streamline half-length (mm).")] = 2.0,
+    scale: Annotated[float, typer.Option(help="mm per unit of the mesh file (25.4 for inches).")] = 1.0,
+    printer: Annotated[str, typer.Option(help="Printer whose pixel pitch bounds the detail.")] = "prusa-sl1",
+    repair: Annotated[bool, typer.Option("--repair", help="Close open meshes with pymeshfix first.")] = False,
+    refractive_index: Annotated[float, typer.Option(help=".obj: the resin's index for the .mtl.")] = 1.5,
+) -> None:
+    """Displace a closed mesh along its angle-weighted normals by a texture; keep it a valid solid."""
+    from printapp.design import design_from_dict
+    from printapp.mesh import check_solid, folded_triangles, load_closed_mesh
+    from printapp.pipeline import build_relief
+
+    try:
+        if out.suffix.lower() not in (".stl", ".3mf", ".ply", ".obj"):
+            raise PrintappError(f"{out}: expected an output file ending in .stl, .3mf, .ply or .obj")
+        options = {
+            "base": {"shape": "mesh", "path": str(model), "scale": scale},
+            "texture": {
+                "kind": texture,
+                "feature_size_mm": feature_size_mm,
+                "seed": seed,
+                "octaves": octaves,
+                "field": field,
+                "length_mm": length_mm,
+            },
+            "relief": {"amplitude_mm": amplitude_mm},
+            "printer": {"name": printer},
+        }
+        design = design_from_dict(options, "options")
+        base = load_closed_mesh(model, scale, repair=repair)
+        relief = build_relief(design, base=base)
+        if folded_triangles(relief.undisplaced, relief.mesh):
+            raise PrintappError(f"{model}: the displaced mesh still folds over; use a smaller --amplitude-mm")
+        solid = check_solid(relief.mesh)
+        if not solid.ok:
+            raise PrintappError(f"{model}: the displaced mesh is not a valid solid ({solid.manifold_status})")
+        _write_model(out, relief.mesh, refractive_index)
+    except PrintappError as exc:
+        raise _fail(exc) from None
+    if relief.softened_vertices:
+        _err.print(
+            f"warning: the relief was lowered at {relief.softened_vertices:,} vertices "
+            "where it would have folded thin or tightly curved triangles"
+        )
+    _out.print(
+        f"{model.name}: {solid.triangles:,} triangles, genus {solid.genus}, "
+        f"volume {solid.volume_mm3:.1f} mm^3, watertight={solid.watertight}; wrote {out}"
     )
 
 

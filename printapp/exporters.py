@@ -106,6 +106,45 @@ def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
     return path
 
 
+def ply_bytes(vertices: np.ndarray, faces: np.ndarray) -> bytes:
+    """A binary little-endian PLY (float32 vertices in mm, int32 triangle lists)."""
+    verts = np.asarray(vertices, dtype="<f4")
+    tris = np.asarray(faces)
+    header = (
+        "ply\nformat binary_little_endian 1.0\ncomment printapp, units: mm\n"
+        f"element vertex {len(verts)}\nproperty float x\nproperty float y\nproperty float z\n"
+        f"element face {len(tris)}\nproperty list uchar int vertex_indices\nend_header\n"
+    ).encode("ascii")
+    record = np.dtype([("n", "u1"), ("v", "<i4", 3)])
+    face_data = np.zeros(len(tris), dtype=record)
+    face_data["n"] = 3
+    face_data["v"] = tris
+    return header + verts.tobytes() + face_data.tobytes()
+
+
+def obj_files(vertices: np.ndarray, faces: np.ndarray, stem: str, refractive_index: float) -> tuple[str, str]:
+    """A Wavefront OBJ with smooth (angle-weighted) vertex normals, and its .mtl.
+
+    The material is the talk's edit, done for the user: ``Ni`` is the resin's refractive
+    index and ``illum 4`` asks renderers for reflection and refraction (glass).
+    """
+    from noise.frames import angle_weighted_normals
+
+    verts = np.asarray(vertices, dtype=np.float64)
+    tris = np.asarray(faces, dtype=np.int64) + 1
+    normals = angle_weighted_normals(verts, tris - 1)
+    lines = [f"# printapp, units: mm\nmtllib {stem}.mtl\nusemtl resin\n"]
+    lines.append(("v %.9g %.9g %.9g\n" * len(verts)) % tuple(verts.ravel().tolist()))
+    lines.append(("vn %.6f %.6f %.6f\n" * len(verts)) % tuple(normals.ravel().tolist()))
+    face_rows = np.repeat(tris, 2, axis=1).ravel().tolist()
+    lines.append(("f %d//%d %d//%d %d//%d\n" * len(tris)) % tuple(face_rows))
+    mtl = (
+        "# printapp resin\nnewmtl resin\nKa 0 0 0\nKd 0.8 0.8 0.8\nKs 1 1 1\nNs 500\n"
+        f"Ni {refractive_index:g}\nd 1\nillum 4\n"
+    )
+    return "".join(lines), mtl
+
+
 class OutputFolder:
     """Stage outputs in a hidden folder beside their destination; move them in on success.
 

@@ -129,8 +129,11 @@ def check_solid(mesh: trimesh.Trimesh) -> SolidCheck:
     )
 
 
-def load_closed_mesh(path: str | Path, scale: float = 1.0) -> trimesh.Trimesh:
+def load_closed_mesh(path: str | Path, scale: float = 1.0, repair: bool = False) -> trimesh.Trimesh:
     """Read a mesh file, merge duplicate vertices, scale it to mm, and insist that it is closed.
+
+    With ``repair``, an open or inconsistently oriented mesh is first made watertight by
+    pymeshfix (Attene's MeshFix: fills holes, removes degenerate and intersecting pieces).
 
     Raises
     ------
@@ -147,10 +150,21 @@ def load_closed_mesh(path: str | Path, scale: float = 1.0) -> trimesh.Trimesh:
     if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
         raise DesignError(f"{path}: expected a triangle mesh, found no triangles")
     mesh = trimesh.Trimesh(vertices=loaded.vertices * scale, faces=loaded.faces, process=False)
+    if repair and not (mesh.is_watertight and mesh.is_winding_consistent):
+        import pymeshfix
+
+        fixer = pymeshfix.MeshFix(
+            np.asarray(mesh.vertices, dtype=np.float64), np.asarray(mesh.faces, dtype=np.int32)
+        )
+        fixer.repair()
+        mesh = trimesh.Trimesh(vertices=fixer.points, faces=fixer.faces, process=False)
+        if len(mesh.faces) == 0:
+            raise DesignError(f"{path}: the repair left no triangles")
     if not mesh.is_watertight:
         open_edges = int(np.sum(trimesh.grouping.group_rows(mesh.edges_sorted, require_count=1).shape[0]))
         raise DesignError(
-            f"{path}: expected a closed (watertight) mesh, found {open_edges} open edges; repair it first"
+            f"{path}: expected a closed (watertight) mesh, found {open_edges} open edges; "
+            "`printapp displace --repair` can close it"
         )
     if not mesh.is_winding_consistent:
         raise DesignError(f"{path}: expected consistently oriented triangles, found flipped ones")
@@ -182,12 +196,69 @@ def refine_to_edge_length(mesh: trimesh.Trimesh, max_edge_mm: float) -> trimesh.
     return out
 
 
-def displace_along_normals(mesh: trimesh.Trimesh, offsets_mm: np.ndarray) -> trimesh.Trimesh:
-    """Move each vertex outward along its angle-weighted normal by ``offsets_mm`` (mm).
+CREASE_FULL_DEG = 10.0
+CREASE_NONE_DEG = 30.0
 
-    Connectivity is unchanged, so a closed mesh stays closed; offsets larger than
-    the local radius of curvature can make the surface self-intersect.
+
+def crease_weights(vertices: np.ndarray, faces: np.ndarray, normals: np.ndarray) -> np.ndarray:
+    """1 where the surface is smooth around a vertex, fading to 0 at sharp creases and corners.
+
+    A vertex whose normal is within 10 degrees of every incident face keeps the whole
+    relief; one that is 30 degrees or more off some face (a CAD part's edges and corners)
+    gets none, with a smoothstep between. On a crease the averaged normal points between
+    the faces, so moving a crease vertex along it slides it sideways over its neighbours
+    and folds thin triangles; moving it not at all cannot.
     """
-    normals = angle_weighted_normals(np.asarray(mesh.vertices), np.asarray(mesh.faces))
-    moved = mesh.vertices + normals * offsets_mm[:, None]
-    return trimesh.Trimesh(vertices=moved, faces=mesh.faces, process=False)
+    tri = vertices[faces]
+    face_n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    face_n /= np.maximum(np.linalg.norm(face_n, axis=1, keepdims=True), 1e-300)
+    worst = np.ones(len(vertices))
+    for k in range(3):
+        np.minimum.at(worst, faces[:, k], np.einsum("ij,ij->i", normals[faces[:, k]], face_n))
+    full, none = np.cos(np.radians(CREASE_FULL_DEG)), np.cos(np.radians(CREASE_NONE_DEG))
+    t = np.clip((worst - none) / (full - none), 0.0, 1.0)
+    return t * t * (3.0 - 2.0 * t)
+
+
+def displace_along_normals(mesh: trimesh.Trimesh, offsets_mm: np.ndarray) -> tuple[trimesh.Trimesh, int]:
+    """Move each vertex outward along its angle-weighted normal by ``offsets_mm`` (mm), without folds.
+
+    The offsets fade out at sharp creases (see :func:`crease_weights`). Where a triangle
+    would still turn over (thin triangles where the normals turn, as on the fillets of a
+    CAD mesh, or concave regions tighter than the relief is deep), the offsets of its
+    vertices are halved until it does not, and zeroed after twelve halvings; the number of
+    vertices so softened is returned, to be reported. Connectivity is unchanged, so a
+    closed mesh stays closed.
+    """
+    vertices = np.asarray(mesh.vertices)
+    faces = np.asarray(mesh.faces)
+    normals = angle_weighted_normals(vertices, faces)
+    offsets = offsets_mm * crease_weights(vertices, faces, normals)
+    before = _face_normals_unnormalised(vertices, faces)
+    softened = np.zeros(len(vertices), dtype=bool)
+    for attempt in range(13):
+        moved = vertices + normals * offsets[:, None]
+        flipped = np.einsum("ij,ij->i", before, _face_normals_unnormalised(moved, faces)) <= 0
+        if not flipped.any():
+            break
+        corners = np.unique(faces[flipped])
+        softened[corners] = True
+        offsets[corners] = 0.0 if attempt == 11 else offsets[corners] * 0.5
+    return trimesh.Trimesh(vertices=moved, faces=mesh.faces, process=False), int(softened.sum())
+
+
+def _face_normals_unnormalised(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    return np.cross(
+        vertices[faces[:, 1]] - vertices[faces[:, 0]], vertices[faces[:, 2]] - vertices[faces[:, 0]]
+    )
+
+
+def folded_triangles(before: trimesh.Trimesh, after: trimesh.Trimesh) -> int:
+    """How many triangles turned over (normal reversed) between two meshes with the same faces.
+
+    A fold is what a displacement larger than the local radius of curvature makes, and a
+    slicer would see it as a self-intersection.
+    """
+    a = _face_normals_unnormalised(np.asarray(before.vertices), np.asarray(before.faces))
+    b = _face_normals_unnormalised(np.asarray(after.vertices), np.asarray(after.faces))
+    return int(np.sum(np.einsum("ij,ij->i", a, b) <= 0))

@@ -52,6 +52,10 @@ class Relief:
     mesh: trimesh.Trimesh
     patch: HeightField
     """A flat patch of the relief, at the design's pitch and amplitude scale, for appearance."""
+    undisplaced: trimesh.Trimesh | None = None
+    """For mesh bases: the refined mesh before displacement (same faces as ``mesh``)."""
+    softened_vertices: int = 0
+    """For mesh bases: vertices whose relief was lowered so that no triangle folds."""
 
 
 @dataclass
@@ -65,15 +69,19 @@ class Outcome:
     render_warning: str | None = None
 
 
-def build_relief(design: Design) -> Relief:
-    """The displaced, closed model of a design (mm) and a flat patch of its relief."""
+def build_relief(design: Design, base: trimesh.Trimesh | None = None) -> Relief:
+    """The displaced, closed model of a design (mm) and a flat patch of its relief.
+
+    ``base`` replaces loading the design's mesh file (e.g. a repaired mesh).
+    """
     texture = design.texture
     pitch = design.pitch_mm
     if isinstance(design.base, TileBase):
         field_ = relief_heightfield(design)
         return Relief(mesh=slab_from_heightfield(field_, design.base.thickness_mm), patch=field_)
     assert isinstance(design.base, MeshBase)
-    base = load_closed_mesh(design.base.path, design.base.scale)
+    if base is None:
+        base = load_closed_mesh(design.base.path, design.base.scale)
     if texture.kind == "lic":
         # The smeared noise varies on the scale of its features across the streamlines:
         # two vertices per feature resolve it.
@@ -87,7 +95,9 @@ def build_relief(design: Design) -> Relief:
         refined = refine_to_edge_length(base, edge)
         raw = evaluate_texture(np.asarray(refined.vertices), texture, pitch_mm=edge)
     lo, hi = float(raw.min()), float(raw.max())
-    mesh = displace_along_normals(refined, normalise_peak_to_valley(raw, design.relief.amplitude_mm))
+    mesh, softened = displace_along_normals(
+        refined, normalise_peak_to_valley(raw, design.relief.amplitude_mm)
+    )
     # A flat patch of the same texture on the mesh's value-to-height scale, so that its
     # slopes are the mesh's (for a mesh-only lic field, a constant field: the same slope
     # statistics up to a rotation).
@@ -99,7 +109,12 @@ def build_relief(design: Design) -> Relief:
         patch_texture = texture.model_copy(update={"field": "constant:0"})
     values = evaluate_texture_grid(np.arange(n) * step, np.arange(n) * step, patch_texture, step)
     scale = design.relief.amplitude_mm / (hi - lo) if hi > lo else 0.0
-    return Relief(mesh=mesh, patch=HeightField((values - lo) * scale, step, step))
+    return Relief(
+        mesh=mesh,
+        patch=HeightField((values - lo) * scale, step, step),
+        undisplaced=refined,
+        softened_vertices=softened,
+    )
 
 
 @dataclass
@@ -350,6 +365,7 @@ def run_design(
                 "pitch_mm": design.pitch_mm,
                 "grid": grid,
                 "sq_um": round(float(np.std(relief.patch.heights_mm)) * 1000.0, 4),
+                "softened_vertices": relief.softened_vertices,
             },
             "printer": {
                 "name": profile.name,

@@ -368,3 +368,44 @@ def test_slice_bad_input(tmp_path, args, message):
     assert result.returncode == 2
     assert message in result.stderr
     assert list(tmp_path.iterdir()) == []
+
+
+def test_displace_repairs_and_writes_obj_with_material(tmp_path):
+    out = tmp_path / "teapot.obj"
+    result = printapp(
+        "displace", ROOT / "data" / "meshes" / "teapot.stl", "--repair", "--amplitude-mm", "0.05",
+        "--feature-size-mm", "3", "--refractive-index", "1.52", "-o", out,
+    )  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    mtl = (tmp_path / "teapot.mtl").read_text()
+    assert "Ni 1.52" in mtl and "illum 4" in mtl
+    text = out.read_text()
+    assert "mtllib teapot.mtl" in text and "\nvn " in text
+    mesh = trimesh.load(out, force="mesh")
+    assert mesh.is_watertight
+
+
+def test_displace_writes_ply_and_refuses_open_meshes(tmp_path):
+    out = tmp_path / "part.ply"
+    result = printapp(
+        "displace",
+        ROOT / "data" / "meshes" / "featuretype.STL",
+        "--scale",
+        "5",
+        "--amplitude-mm",
+        "0.1",
+        "-o",
+        out,
+    )
+    assert result.returncode == 0, result.stderr
+    mesh = trimesh.load(out)
+    assert mesh.is_watertight and mesh.is_winding_consistent and mesh.euler_number == 2 - 2 * 9
+    bad = printapp(
+        "displace", ROOT / "data" / "meshes" / "teapot.stl", "--amplitude-mm", "0.1", "-o", tmp_path / "t.stl"
+    )
+    assert bad.returncode == 2 and "printapp displace --repair" in bad.stderr
+    assert not (tmp_path / "t.stl").exists()
+    bad = printapp(
+        "displace", ROOT / "data" / "meshes" / "featuretype.STL", "--amplitude-mm", "-1", "-o", out
+    )
+    assert bad.returncode == 2 and "relief.amplitude_mm" in bad.stderr

@@ -67,7 +67,7 @@ def test_displacing_a_closed_mesh_keeps_it_closed():
     assert np.max(refined.edges_unique_length) <= 1.0 + 1e-9
     assert refined.volume == pytest.approx(mesh.volume, rel=1e-9)
     offsets = np.full(len(refined.vertices), 0.1)
-    moved = displace_along_normals(refined, offsets)
+    moved, _ = displace_along_normals(refined, offsets)
     check = check_solid(moved)
     assert check.watertight and check.winding_consistent and check.manifold
     assert check.genus == check_solid(mesh).genus
@@ -88,3 +88,22 @@ def test_unreadable_mesh_file(tmp_path):
     bad.write_bytes(b"solid nonsense\nfacet normal 1 2\n")
     with pytest.raises(DesignError, match="bad.stl"):
         load_closed_mesh(bad)
+
+
+def test_relief_fades_at_creases_and_never_folds():
+    from printapp.mesh import folded_triangles
+
+    cube = trimesh.creation.box(extents=(4.0, 4.0, 4.0)).subdivide().subdivide()
+    moved, _ = displace_along_normals(cube, np.full(len(cube.vertices), 0.3))
+    on_edge = np.sum(np.isclose(np.abs(cube.vertices), 2.0), axis=1) >= 2
+    face_interior = np.sum(np.isclose(np.abs(cube.vertices), 2.0), axis=1) == 1
+    shift = np.linalg.norm(moved.vertices - cube.vertices, axis=1)
+    assert np.allclose(shift[on_edge], 0.0)  # edges and corners stay put
+    assert np.allclose(shift[face_interior], 0.3)  # flat faces get the whole relief
+    # A CAD mesh with sliver triangles: large random offsets would fold many of them.
+    part = refine_to_edge_length(load_closed_mesh(DATA / "featuretype.STL", scale=5.0), 0.5)
+    offsets = np.random.default_rng(0).uniform(0.0, 0.3, len(part.vertices))
+    moved, softened = displace_along_normals(part, offsets)
+    assert folded_triangles(part, moved) == 0
+    assert 0 < softened < 0.2 * len(part.vertices)
+    assert check_solid(moved).watertight

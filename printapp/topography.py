@@ -117,21 +117,29 @@ def _read_x3p(path: Path) -> Topography:
 
 
 def _read_gwy(path: Path) -> Topography:
+    import re
+
     import gwyfile
+    from gwyfile.objects import GwyDataField
 
     try:
         obj = gwyfile.load(str(path))
-        channels = gwyfile.util.get_datafields(obj)
     except Exception as exc:  # gwyfile raises plain exceptions for malformed files
         raise DesignError(f"{path}: cannot read the Gwyddion file ({exc})") from None
+    # Channels are stored as /N/data; the first one is the height map.
+    channels = sorted(
+        (int(m.group(1)), value)
+        for key, value in obj.items()
+        if (m := re.fullmatch(r"/(\d+)/data", key)) and isinstance(value, GwyDataField)
+    )
     if not channels:
         raise DesignError(f"{path}: the Gwyddion file holds no data field")
-    field = next(iter(channels.values()))
+    field = channels[0][1]
     data = np.asarray(field.data, dtype=np.float64)
     ny, nx = data.shape
-    unit = getattr(field, "si_unit_xy", None)
-    scale = 1000.0 if unit is None or getattr(unit, "unitstr", "m") in ("m", "") else 1.0
-    return Topography(data * scale, field.xreal / nx * scale, field.yreal / ny * scale)
+    unit = field.get("si_unit_xy")
+    scale = 1000.0 if unit is None or unit.get("unitstr", "m") in ("m", "") else 1.0
+    return Topography(data * scale, field["xreal"] / nx * scale, field["yreal"] / ny * scale)
 
 
 def _read_image(

@@ -140,3 +140,20 @@ def test_heightmap_and_emboss_commands(tmp_path):
     bad = printapp("emboss", image, "-o", tmp_path / "x.stl")
     assert bad.returncode == 2 and "no physical scale" in bad.stderr
     assert not (tmp_path / "x.stl").exists()
+
+
+def test_gwyddion_files_keep_scale_and_non_square_pixels(tmp_path):
+    from gwyfile.objects import GwyContainer, GwyDataField, GwySIUnit
+
+    heights = np.random.default_rng(1).normal(0, 1e-7, (20, 30))
+    container = GwyContainer()
+    container["/0/data"] = GwyDataField(
+        heights, xreal=30e-6, yreal=40e-6, si_unit_xy=GwySIUnit(unitstr="m"), si_unit_z=GwySIUnit(unitstr="m")
+    )
+    container.tofile(str(tmp_path / "m.gwy"))
+    topo = read_heightmap(tmp_path / "m.gwy")
+    assert (topo.pitch_x_mm, topo.pitch_y_mm) == pytest.approx((1e-3, 2e-3))
+    np.testing.assert_allclose(topo.heights_mm, heights * 1000)
+    (tmp_path / "bad.gwy").write_bytes(b"GWYPnonsense")
+    with pytest.raises(DesignError, match="cannot read the Gwyddion file"):
+        read_heightmap(tmp_path / "bad.gwy")

@@ -205,6 +205,31 @@ class Render(_Section):
     azimuth_rad: Annotated[float, at.Ge(-2 * math.pi), at.Le(2 * math.pi)] = math.radians(-60.0)
 
 
+Vector3 = tuple[float, float, float]
+
+
+class Combine(_Section):
+    """A boolean with another solid, applied to the relief model (manifold3d).
+
+    ``shape = "box"`` is a box of ``size_mm`` centred at ``translate_mm``;
+    ``shape = "mesh"`` is a closed mesh file (``path``, relative to the design file),
+    scaled by ``scale`` and moved by ``translate_mm``.
+    """
+
+    op: Literal["union", "difference", "intersection"]
+    shape: Literal["box", "mesh"] = "box"
+    size_mm: tuple[PositiveMM, PositiveMM, PositiveMM] = Field(default=(1.0, 1.0, 1.0), strict=False)
+    path: str | None = None
+    scale: Annotated[float, at.Gt(0.0), at.Le(1e6)] = 1.0
+    translate_mm: tuple[float, float, float] = Field(default=(0.0, 0.0, 0.0), strict=False)
+
+    @model_validator(mode="after")
+    def _mesh_needs_path(self) -> Combine:
+        if self.shape == "mesh" and not self.path:
+            raise ValueError("a mesh combine needs 'path'")
+        return self
+
+
 class Design(_Section):
     """A whole design: base shape, texture, relief, printer, material, targets, preview."""
 
@@ -216,6 +241,7 @@ class Design(_Section):
     material: Material = Material()
     appearance: Appearance = Appearance()
     render: Render = Render()
+    combine: list[Combine] = Field(default_factory=list, strict=False)
 
     @model_validator(mode="before")
     @classmethod
@@ -486,6 +512,14 @@ def load_design(path: str | Path) -> Design:
     if kind == "image" and not Path(image).is_absolute():
         field = f"image:{path.parent / image}"
         design = design.model_copy(update={"texture": design.texture.model_copy(update={"field": field})})
+    if design.combine:
+        resolved = [
+            c.model_copy(update={"path": str(path.parent / c.path)})
+            if c.path is not None and not Path(c.path).is_absolute()
+            else c
+            for c in design.combine
+        ]
+        design = design.model_copy(update={"combine": resolved})
     if isinstance(design.base, MeshBase):
         mesh_path = Path(design.base.path)
         if not mesh_path.is_absolute():

@@ -25,6 +25,7 @@ from printapp.heightfield import HeightField
 from printapp.mesh import (
     SolidCheck,
     check_solid,
+    combine_solids,
     displace_along_normals,
     load_closed_mesh,
     refine_to_edge_length,
@@ -277,6 +278,8 @@ def run_design(
     with OutputFolder(out_dir) as out, StageTimer(quiet=quiet) as timer:
         with timer.stage("relief", "relief and printable mesh"):
             relief = build_relief(design)
+            if design.combine:
+                relief.mesh = combine_solids(relief.mesh, design.combine)
         mesh = relief.mesh
         with timer.stage("check", "solid checks (trimesh, manifold3d)"):
             solid = check_solid(mesh)
@@ -284,7 +287,7 @@ def run_design(
         if solid.ok and fits_printer(design, solid):
             with timer.stage("slice", "slicing for the printer"):
                 profile_ = design.printer.profile
-                if isinstance(design.base, TileBase):
+                if isinstance(design.base, TileBase) and not design.combine:
                     # Straight from the height field: the same layers as slicing the slab, no mesh.
                     patch = relief.patch
                     slices = slice_heightfield(
@@ -299,7 +302,7 @@ def run_design(
                     slices = slice_mesh(
                         mesh.vertices, mesh.faces, profile_, layer_height_mm=design.layer_height_mm
                     )
-            if isinstance(design.base, TileBase):
+            if isinstance(design.base, TileBase) and not design.combine:
                 with timer.stage("as_printed", "as-printed relief"):
                     printed = as_printed(relief.patch, slices, design.base.thickness_mm)
         with timer.stage("appearance", "predicted appearance (slopes)"):

@@ -107,3 +107,22 @@ def test_relief_fades_at_creases_and_never_folds():
     assert folded_triangles(part, moved) == 0
     assert 0 < softened < 0.2 * len(part.vertices)
     assert check_solid(moved).watertight
+
+
+def test_combine_solids_with_boxes_and_meshes():
+    from printapp.design import Combine
+    from printapp.mesh import combine_solids
+
+    slab = slab_from_heightfield(HeightField(np.zeros((11, 21)), 1.0, 1.0), 2.0)  # 20 x 10 x 2 mm
+    slot = Combine(op="difference", shape="box", size_mm=(4.0, 2.0, 10.0), translate_mm=(10.0, 5.0, 0.0))
+    cut = check_solid(combine_solids(slab, [slot]))
+    assert cut.watertight and cut.manifold and cut.genus == 1
+    assert cut.volume_mm3 == pytest.approx(20 * 10 * 2 - 4 * 2 * 2, rel=1e-6)
+    post = Combine(
+        op="union", shape="mesh", path=str(DATA / "featuretype.STL"), scale=1.0, translate_mm=(3, 3, 1.5)
+    )
+    joined = check_solid(combine_solids(slab, [post]))
+    assert joined.watertight and joined.volume_mm3 > 400
+    away = Combine(op="intersection", shape="box", size_mm=(1.0, 1.0, 1.0), translate_mm=(100.0, 0.0, 0.0))
+    with pytest.raises(DesignError, match=r"combine\[0\]: the intersection leaves nothing"):
+        combine_solids(slab, [away])

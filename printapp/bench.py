@@ -207,11 +207,19 @@ def bench_slice(repeats: int) -> StageResult:
     return run(repeats)
 
 
+def bench_emboss(repeats: int) -> StageResult:
+    """Height map to STL beside Blender (see printapp.bench_emboss)."""
+    from printapp.bench_emboss import bench_emboss as run
+
+    return run(repeats)
+
+
 STAGES: dict[str, Callable[[int], StageResult]] = {
     "noise": bench_noise,
     "frames": bench_frames,
     "lic": bench_lic,
     "slice": bench_slice,
+    "emboss": bench_emboss,
     "mesh": bench_mesh,
     "pipeline": bench_pipeline,
 }
@@ -233,9 +241,10 @@ def run_bench(
     report: dict[str, Any] = {}
     for name in names:
         result = STAGES[name](repeats)
-        table = Table(*result.rows[0].keys(), title=f"{name}: {result.description}")
+        columns = list(dict.fromkeys(key for row in result.rows for key in row))
+        table = Table(*columns, title=f"{name}: {result.description}")
         for row in result.rows:
-            table.add_row(*(str(v) for v in row.values()))
+            table.add_row(*(str(row.get(c, "")) for c in columns))
         console.print(table)
         for note in result.notes:
             console.print(f"  {note}")

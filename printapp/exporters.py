@@ -10,6 +10,7 @@ from pathlib import Path
 from types import TracebackType
 
 import numpy as np
+from numba import njit, prange
 
 from printapp.errors import DesignError
 
@@ -17,20 +18,46 @@ _STL_HEADER = b"printapp binary STL; units: mm".ljust(80, b" ")
 _ZIP_EPOCH = (1980, 1, 1, 0, 0, 0)
 
 
+@njit(cache=True, parallel=True)
+def _stl_records(vertices: np.ndarray, faces: np.ndarray, out: np.ndarray) -> None:
+    """Fill (n, 12) float32 records: unit normal (computed in float64), then the three vertices."""
+    for t in prange(faces.shape[0]):
+        a, b, c = faces[t, 0], faces[t, 1], faces[t, 2]
+        e1x, e1y, e1z = (
+            vertices[b, 0] - vertices[a, 0],
+            vertices[b, 1] - vertices[a, 1],
+            vertices[b, 2] - vertices[a, 2],
+        )
+        e2x, e2y, e2z = (
+            vertices[c, 0] - vertices[a, 0],
+            vertices[c, 1] - vertices[a, 1],
+            vertices[c, 2] - vertices[a, 2],
+        )
+        nx = e1y * e2z - e1z * e2y
+        ny = e1z * e2x - e1x * e2z
+        nz = e1x * e2y - e1y * e2x
+        length = np.sqrt(nx * nx + ny * ny + nz * nz)
+        if length > 0:
+            nx, ny, nz = nx / length, ny / length, nz / length
+        out[t, 0], out[t, 1], out[t, 2] = nx, ny, nz
+        for k, v in enumerate((a, b, c)):
+            out[t, 3 + 3 * k] = vertices[v, 0]
+            out[t, 4 + 3 * k] = vertices[v, 1]
+            out[t, 5 + 3 * k] = vertices[v, 2]
+
+
 def stl_bytes(vertices: np.ndarray, faces: np.ndarray) -> bytes:
     """A binary STL of a triangle mesh (mm), with unit facet normals computed in float64.
 
     The header is fixed, so the same mesh always gives the same bytes.
     """
-    tri = np.asarray(vertices, dtype=np.float64)[np.asarray(faces)]
-    normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    norms = np.linalg.norm(normals, axis=1, keepdims=True)
-    normals = np.divide(normals, norms, out=np.zeros_like(normals), where=norms > 0)
-    record = np.dtype([("normal", "<f4", 3), ("vertices", "<f4", (3, 3)), ("attr", "<u2")])
-    data = np.zeros(len(tri), dtype=record)
-    data["normal"] = normals
-    data["vertices"] = tri
-    return _STL_HEADER + np.uint32(len(tri)).astype("<u4").tobytes() + data.tobytes()
+    verts = np.ascontiguousarray(vertices, dtype=np.float64)
+    tris = np.ascontiguousarray(faces, dtype=np.int64)
+    records = np.empty((len(tris), 12), dtype=np.float32)
+    _stl_records(verts, tris, records)
+    data = np.zeros(len(tris), dtype=np.dtype([("values", "<f4", 12), ("attr", "<u2")]))
+    data["values"] = records
+    return _STL_HEADER + np.uint32(len(tris)).astype("<u4").tobytes() + data.tobytes()
 
 
 def threemf_bytes(vertices: np.ndarray, faces: np.ndarray, name: str = "printapp model") -> bytes:

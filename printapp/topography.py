@@ -257,10 +257,10 @@ def mask_outliers(heights: np.ndarray, threshold: float = 5.0) -> np.ndarray:
 
 def fill_masked(heights: np.ndarray, mask: np.ndarray) -> np.ndarray:
     """Replace masked samples by linear interpolation from the valid ones (nearest at the border)."""
-    from scipy.interpolate import griddata
-
     if not mask.any():
         return heights.copy()
+    from scipy.interpolate import griddata
+
     rows, cols = np.indices(heights.shape)
     known = ~mask
     points = np.column_stack([rows[known], cols[known]])

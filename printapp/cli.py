@@ -258,6 +258,22 @@ def _flatten_order(flatten: str | None) -> int | None:
     raise PrintappError(f"--flatten: expected 'plane' or 'poly:K' with K in 0..8, got '{flatten}'")
 
 
+def _crop_window(crop: str | None, shape: tuple[int, int]) -> tuple[slice, slice]:
+    if crop is None:
+        return slice(None), slice(None)
+    try:
+        cols, rows = crop.split(",")
+        c0, c1 = (int(v) for v in cols.split(":"))
+        r0, r1 = (int(v) for v in rows.split(":"))
+    except ValueError:
+        raise PrintappError(f"--crop: expected 'C0:C1,R0:R1' in samples, got '{crop}'") from None
+    if not (0 <= c0 < c1 <= shape[1] and 0 <= r0 < r1 <= shape[0] and c1 - c0 >= 2 and r1 - r0 >= 2):
+        raise PrintappError(
+            f"--crop: '{crop}' is not a window of at least 2 x 2 samples inside {shape[1]} x {shape[0]}"
+        )
+    return slice(r0, r1), slice(c0, c1)
+
+
 def _load_corrected(
     path: Path,
     width_mm: float | None,
@@ -265,15 +281,16 @@ def _load_corrected(
     pitch_mm: float | None,
     remove_outliers: bool,
     flatten: str | None,
+    crop: str | None = None,
 ):
-    """Read a height map and apply the requested corrections; missing data is always filled."""
+    """Read a height map, crop it, and apply the corrections; missing data is always filled."""
     import numpy as np
 
     from printapp.topography import fill_masked, level, mask_outliers, read_heightmap
 
     order = _flatten_order(flatten)
     topo = read_heightmap(path, width_mm=width_mm, depth_mm=depth_mm, pitch_mm=pitch_mm)
-    heights = topo.heights_mm
+    heights = topo.heights_mm[_crop_window(crop, topo.heights_mm.shape)]
     mask = mask_outliers(heights) if remove_outliers else ~np.isfinite(heights)
     heights = fill_masked(heights, mask)
     if order is not None:
@@ -296,6 +313,7 @@ def heightmap(
         bool, typer.Option(help="Mask samples beyond 5 robust sigmas, then fill.")
     ] = False,
     flatten: Annotated[str | None, typer.Option(help="Level the base: 'plane' or 'poly:K'.")] = None,
+    crop: Annotated[str | None, typer.Option(help="Keep columns C0:C1 and rows R0:R1 (samples).")] = None,
     json_out: Annotated[Path | None, typer.Option("--json", help="Write the parameters as JSON.")] = None,
 ) -> None:
     """Correct a measured or image height map and print its ISO 25178 roughness parameters."""
@@ -312,7 +330,7 @@ def heightmap(
         if out is not None and out.suffix.lower() != ".npy":
             raise PrintappError(f"{out}: expected an output file ending in .npy")
         heights, px, py, filled = _load_corrected(
-            source, width_mm, depth_mm, pitch_mm, remove_outliers, flatten
+            source, width_mm, depth_mm, pitch_mm, remove_outliers, flatten, crop
         )
         r = roughness(heights, px, py)
         values = {

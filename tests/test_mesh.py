@@ -126,3 +126,24 @@ def test_combine_solids_with_boxes_and_meshes():
     away = Combine(op="intersection", shape="box", size_mm=(1.0, 1.0, 1.0), translate_mm=(100.0, 0.0, 0.0))
     with pytest.raises(DesignError, match=r"combine\[0\]: the intersection leaves nothing"):
         combine_solids(slab, [away])
+
+
+@pytest.mark.skipif(__import__("shutil").which("admesh") is None, reason="ADMesh is not installed")
+def test_admesh_finds_nothing_to_fix(tmp_path):
+    import re
+    import subprocess
+
+    from printapp.exporters import stl_bytes
+
+    rng = np.random.default_rng(4)
+    mesh = slab_from_heightfield(HeightField(rng.uniform(0, 0.3, (40, 50)), 0.1, 0.1), 1.0)
+    path = tmp_path / "slab.stl"
+    path.write_bytes(stl_bytes(mesh.vertices, mesh.faces))
+    report = subprocess.run(
+        ["admesh", "--exact", str(path)], capture_output=True, text=True, check=True
+    ).stdout
+    assert re.search(r"Total disconnected facets\s*:\s*0\s", report)
+    assert re.search(r"Facets reversed\s*:\s*0\s", report)
+    assert re.search(r"Backwards edges\s*:\s*0\s", report)
+    volume = float(re.search(r"Volume\s*:\s*([\d.]+)", report).group(1))
+    assert volume == pytest.approx(mesh.volume, rel=1e-5)

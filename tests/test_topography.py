@@ -157,3 +157,18 @@ def test_gwyddion_files_keep_scale_and_non_square_pixels(tmp_path):
     (tmp_path / "bad.gwy").write_bytes(b"GWYPnonsense")
     with pytest.raises(DesignError, match="cannot read the Gwyddion file"):
         read_heightmap(tmp_path / "bad.gwy")
+
+
+def test_heightmap_crop_and_bad_crop(tmp_path):
+    from tests.test_cli import printapp
+
+    result = printapp(
+        "heightmap", DATA / "al3d-1.al3d", "--crop", "10:110,20:220", "--json", tmp_path / "c.json"
+    )
+    assert result.returncode == 0, result.stderr
+    summary = __import__("json").loads((tmp_path / "c.json").read_text())
+    assert summary["samples"] == [200, 100]
+    bad = printapp("heightmap", DATA / "al3d-1.al3d", "--crop", "10:900,0:5")
+    assert bad.returncode == 2 and "--crop" in bad.stderr
+    bad = printapp("heightmap", DATA / "al3d-1.al3d", "--flatten", "cubic")
+    assert bad.returncode == 2 and "--flatten: expected 'plane' or 'poly:K'" in bad.stderr

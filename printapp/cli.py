@@ -117,7 +117,7 @@ def design(
     force: ForceOption = False,
     quiet: QuietOption = False,
 ) -> None:
-    """Build a design: model.stl, model.3mf, preview.png, design.resolved.toml, manifest.json."""
+    """Build a design: model.stl, model.3mf, slices.sl1, preview.png, design.resolved.toml, manifest.json."""
     _run(design_file, out if out is not None else Path(f"{design_file.stem}-out"), force, quiet)
 
 
@@ -156,7 +156,7 @@ def texture(
     ] = "swirl",
     length: Annotated[float, typer.Option(help="lic: streamline half-length (pixels).")] = 15.0,
 ) -> None:
-    """Write a texture image: sparse convolution noise, fBm, turbulence or the talk's marble mapping.
+    """Write a texture image: sparse convolution noise, fBm, turbulence, marble, or LIC along a field.
 
     PNG images of scn, fbm, turbulence and lic are scaled from their minimum to their
     maximum; marble is 0.5 (A noise(B p) + 1) clipped to [0, 1]. .npy files hold the raw

@@ -1,6 +1,6 @@
 """The talk's Blender workflow, headless: height map -> subdivided grid -> Displace -> STL.
 
-Run by `printapp bench emboss` as the peer:
+Run by `printapp bench mesh` as the peer:
     blender -b --factory-startup --python-exit-code 1 --python peers/blender_displace.py -- \
         MAP.png N OUT.stl WIDTH_MM DEPTH_MM
 An N x N-quad grid of WIDTH_MM, displaced by DEPTH_MM for white, read as Non-Color data

@@ -66,7 +66,7 @@ def _triangulated_value(
     return np.where(u >= v, lower, upper)
 
 
-def bench_mesh(repeats: int) -> StageResult:
+def bench_pitch(repeats: int) -> StageResult:
     """Tile relief + closed slab at several pitches: time against height error."""
     from printapp.design import Design
     from printapp.mesh import slab_from_heightfield
@@ -134,7 +134,7 @@ def bench_mesh(repeats: int) -> StageResult:
         plt.close(fig)
 
     return StageResult(
-        "mesh",
+        "pitch",
         "relief height field + closed slab mesh at several pitches (0.04725 mm = SL1 pixel)",
         rows,
         chart,
@@ -207,8 +207,8 @@ def bench_slice(repeats: int) -> StageResult:
     return run(repeats)
 
 
-def bench_emboss(repeats: int) -> StageResult:
-    """Height map to STL beside Blender (see printapp.bench_emboss)."""
+def bench_mesh(repeats: int) -> StageResult:
+    """Height map to a closed slab STL beside Blender (see printapp.bench_emboss)."""
     from printapp.bench_emboss import bench_emboss as run
 
     return run(repeats)
@@ -219,8 +219,8 @@ STAGES: dict[str, Callable[[int], StageResult]] = {
     "frames": bench_frames,
     "lic": bench_lic,
     "slice": bench_slice,
-    "emboss": bench_emboss,
     "mesh": bench_mesh,
+    "pitch": bench_pitch,
     "pipeline": bench_pipeline,
 }
 

@@ -1,4 +1,4 @@
-"""``printapp bench emboss``: height map to printable model, beside the talk's Blender workflow.
+"""``printapp bench mesh``: height map to printable model, beside the talk's Blender workflow.
 
 The same 1024 x 1024 16-bit height map (smooth fBm), 10 mm wide, 0.2 mm deep:
 

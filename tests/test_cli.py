@@ -211,14 +211,14 @@ def test_help_lists_the_commands():
 
 
 def test_bench_writes_json_and_chart(tmp_path):
-    result = printapp("bench", "mesh", "--repeats", "1", "-o", tmp_path)
+    result = printapp("bench", "pitch", "--repeats", "1", "-o", tmp_path)
     assert result.returncode == 0, result.stderr
     report = json.loads((tmp_path / "bench.json").read_text())
-    rows = report["mesh"]["rows"]
+    rows = report["pitch"]["rows"]
     assert [r["pitch_mm"] for r in rows] == [0.4, 0.2, 0.1, 0.05, 0.025]
     errors = [r["rms_height_error_um"] for r in rows]
     assert errors[0] > errors[-1]  # finer pitch, smaller error
-    assert (tmp_path / "mesh.png").stat().st_size > 1000
+    assert (tmp_path / "pitch.png").stat().st_size > 1000
     unknown = printapp("bench", "nope", "-o", tmp_path)
     assert unknown.returncode == 2 and "unknown bench stage 'nope'" in unknown.stderr
 

@@ -214,6 +214,13 @@ def bench_mesh(repeats: int) -> StageResult:
     return run(repeats)
 
 
+def bench_adaptive(repeats: int) -> StageResult:
+    """Adaptive slab tops: triangles against error (see printapp.bench_adaptive)."""
+    from printapp.bench_adaptive import bench_adaptive as run
+
+    return run(repeats)
+
+
 STAGES: dict[str, Callable[[int], StageResult]] = {
     "noise": bench_noise,
     "frames": bench_frames,
@@ -221,6 +228,7 @@ STAGES: dict[str, Callable[[int], StageResult]] = {
     "slice": bench_slice,
     "mesh": bench_mesh,
     "pitch": bench_pitch,
+    "adaptive": bench_adaptive,
     "pipeline": bench_pipeline,
 }
 

@@ -382,6 +382,10 @@ def emboss(
     ] = None,
     printer: Annotated[str, typer.Option(help="Printer whose pixel pitch is the default.")] = "prusa-sl1",
     flatten: Annotated[str | None, typer.Option(help="Level the base first: 'plane' or 'poly:K'.")] = None,
+    max_error_um: Annotated[
+        float | None,
+        typer.Option(help="Adaptive top: fewest triangles keeping every sample within this (um)."),
+    ] = None,
 ) -> None:
     """Turn a height map into a closed, printable slab (the talk's Blender step, as one command).
 
@@ -393,7 +397,7 @@ def emboss(
 
     from printapp.exporters import atomic_write_bytes, ply_bytes, stl_bytes, threemf_bytes
     from printapp.heightfield import HeightField
-    from printapp.slab import slab_arrays
+    from printapp.slab import adaptive_slab_arrays, slab_arrays
     from slicing import PRINTERS
 
     try:
@@ -419,6 +423,14 @@ def emboss(
             raise PrintappError(
                 f"--pitch-mm: {target:g} mm gives {nx} x {ny} samples; expected at most 16 million"
             )
+        if max_error_um is not None:
+            if not (max_error_um >= 0):
+                raise PrintappError(f"--max-error-um: expected a number >= 0, got {max_error_um}")
+            # The adaptive top needs a square grid of 2^k + 1 samples: the next size up.
+            side = 1
+            while side < max(nx, ny) - 1:
+                side *= 2
+            nx = ny = side + 1
         if (ny, nx) == heights.shape:
             resampled = heights.copy()  # already at the pitch asked for
         else:
@@ -435,7 +447,12 @@ def emboss(
         field = HeightField(resampled, width / (nx - 1), depth / (ny - 1))
         # Closed and consistently oriented by construction (see slab_from_heightfield and
         # its invariant tests), so the costly checks `printapp design` runs are skipped here.
-        vertices, faces = slab_arrays(field, base_mm)
+        if max_error_um is None:
+            vertices, faces = slab_arrays(field, base_mm)
+        else:
+            vertices, faces, worst_mm = adaptive_slab_arrays(
+                resampled, width, depth, base_mm, max_error_um / 1000
+            )
         suffix = out.suffix.lower()
         if suffix == ".stl":
             atomic_write_bytes(out, stl_bytes(vertices, faces))
@@ -447,6 +464,8 @@ def emboss(
             _write_model(out, _ArraysMesh(vertices, faces))
     except PrintappError as exc:
         raise _fail(exc) from None
+    if max_error_um is not None:
+        _out.print(f"adaptive top: every sample within {worst_mm * 1000:.3g} um (bound {max_error_um:g} um)")
     _out.print(
         f"{source.name}: {nx} x {ny} samples at {field.pitch_x_mm * 1000:.1f} um, "
         f"{len(faces):,} triangles, closed slab {field.width_mm:.2f} x {field.depth_mm:.2f} x "

@@ -529,6 +529,7 @@ def displace(
     from printapp.design import design_from_dict
     from printapp.mesh import check_solid, folded_triangles, load_closed_mesh
     from printapp.pipeline import build_relief
+    from slicing import PRINTERS, slice_mesh
 
     try:
         if out.suffix.lower() not in (".stl", ".3mf", ".ply", ".obj"):
@@ -554,6 +555,21 @@ def displace(
         solid = check_solid(relief.mesh)
         if not solid.ok:
             raise PrintappError(f"{model}: the displaced mesh is not a valid solid ({solid.manifold_status})")
+        try:
+            # What the printer would see: a surface passing through itself winds twice.
+            winding = slice_mesh(relief.mesh.vertices, relief.mesh.faces, PRINTERS[printer]).max_winding()
+        except ValueError:
+            winding = None  # larger than this printer: no layers to look at
+        if winding is not None and 1.01 < winding < 1.5:
+            _err.print(
+                f"warning: the surface overlaps itself by less than half a pixel somewhere "
+                f"(winding number {winding:.2f}); the printer cures the union"
+            )
+        if winding is not None and winding >= 1.5:
+            raise PrintappError(
+                f"--amplitude-mm: {amplitude_mm:g} mm makes the surface pass through itself "
+                f"(winding number {winding:.2f}); use a smaller amplitude or larger features"
+            )
         _write_model(out, relief.mesh, refractive_index)
     except PrintappError as exc:
         raise _fail(exc) from None

@@ -167,7 +167,9 @@ def crease_weights(vertices: np.ndarray, faces: np.ndarray, normals: np.ndarray)
 def displace_along_normals(mesh: trimesh.Trimesh, offsets_mm: np.ndarray) -> tuple[trimesh.Trimesh, int]:
     """Move each vertex outward along its angle-weighted normal by ``offsets_mm`` (mm), without folds.
 
-    The offsets fade out at sharp creases (see :func:`crease_weights`). Where a triangle
+    The offsets fade out at sharp creases (see :func:`crease_weights`), over twice the
+    largest offset around them (so that reliefs on the two sides of a concave edge cannot
+    meet). Where a triangle
     would still turn over (thin triangles where the normals turn, as on the fillets of a
     CAD mesh, or concave regions tighter than the relief is deep), the offsets of its
     vertices are halved until it does not, and zeroed after twelve halvings; the number of
@@ -177,7 +179,19 @@ def displace_along_normals(mesh: trimesh.Trimesh, offsets_mm: np.ndarray) -> tup
     vertices = np.asarray(mesh.vertices)
     faces = np.asarray(mesh.faces)
     normals = angle_weighted_normals(vertices, faces)
-    offsets = offsets_mm * crease_weights(vertices, faces, normals)
+    weights = crease_weights(vertices, faces, normals)
+    reach = 2.0 * float(np.max(offsets_mm)) if len(offsets_mm) else 0.0
+    sharp = weights < 1.0
+    if reach > 0 and sharp.any() and not sharp.all():
+        # Fade over twice the relief's height around sharp creases: in a concave corner the
+        # two faces' reliefs then grow towards each other with a slope below one, and
+        # cannot pass through each other.
+        from scipy.spatial import cKDTree
+
+        distance, _ = cKDTree(vertices[sharp]).query(vertices)
+        t = np.clip(distance / reach, 0.0, 1.0)
+        weights = np.minimum(weights, t * t * (3.0 - 2.0 * t))
+    offsets = offsets_mm * weights
     before = _face_normals_unnormalised(vertices, faces)
     softened = np.zeros(len(vertices), dtype=bool)
     for attempt in range(13):

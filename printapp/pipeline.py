@@ -329,6 +329,23 @@ def run_design(
                 )
         with timer.stage("verify", "verification"):
             passed, failed = verify(design, solid, appearance, image)
+            winding = slices.max_winding() if slices is not None else None
+            if winding is not None:
+                # Winding 1 inside a solid; 2 where the surface passes through itself. The
+                # printer cures the union either way, so overlaps of less than half a pixel
+                # are noted, not failed.
+                if winding <= 1.01:
+                    passed.append("the layers show no self-overlap (winding number 1)")
+                elif winding < 1.5:
+                    passed.append(
+                        f"the surface overlaps itself by less than half a pixel somewhere (pixel-averaged "
+                        f"winding number {winding:.2f}); the printer cures the union"
+                    )
+                else:
+                    failed.append(
+                        f"the model overlaps itself (winding number {winding:.2f} in some layer): "
+                        "its surface passes through itself"
+                    )
         ok = not failed
         with timer.stage("write", "writing outputs"):
             if image is not None:
@@ -379,6 +396,7 @@ def run_design(
                 else profile.layer_count(solid.size_mm[2], design.layer_height_mm),
                 "antialias": profile.antialiasing,
             },
+            "max_winding": None if winding is None else round(winding, 4),
             "as_printed": None
             if printed is None
             else {

@@ -395,6 +395,27 @@ def _rasterise_layer_grey(
         acc[r, cols + 1] = 0.0
 
 
+@njit(cache=True, nogil=True)
+def _max_winding(seg, start, end, ox: float, oy: float, inv_pitch_x: float, inv_pitch_y: float, acc) -> float:
+    """Largest |winding number| (averaged over a pixel) of a layer's section; acc is left zero.
+
+    A closed, consistently oriented solid that does not overlap itself winds once around
+    every point inside it: more than one means the surface passes through itself there.
+    """
+    _add_segments(seg, start, end, ox, oy, inv_pitch_x, inv_pitch_y, acc)
+    worst = 0.0
+    rows, cols = acc.shape[0], acc.shape[1] - 2
+    for r in range(rows):
+        total = 0.0
+        for c in range(cols):
+            total += acc[r, c]
+            acc[r, c] = 0.0
+            worst = max(worst, abs(total))
+        acc[r, cols] = 0.0
+        acc[r, cols + 1] = 0.0
+    return worst
+
+
 @njit(cache=True)
 def _section_areas(layer, seg, n_layers) -> np.ndarray:
     """Exact cross-section area of each layer (shoelace over its directed segments)."""

@@ -35,6 +35,7 @@ import numpy as np
 from slicing.printers import PrinterProfile
 from slicing.raster import (
     _layer_box,
+    _max_winding,
     _rasterise_layer_grey,
     heightfield_segments,
     rasterise_sections,
@@ -140,6 +141,42 @@ class Slices:
             cached = np.searchsorted(self._layer, np.arange(self.n_layers + 1), side="left")
             self._bounds_cache = cached
         return cached
+
+    def max_winding(self) -> float:
+        """Largest winding number (pixel-averaged) over all layers: 1 for a solid that does not
+        overlap itself, 2 or more where its surface passes through itself (as the printer sees it).
+        """
+        p = self.profile
+        ox, oy = self.col0 * p.pitch_x_mm, self.row0 * p.pitch_y_mm
+        acc = np.zeros((self.rows, self.cols + 2))
+        bounds = self._bounds
+        worst = 0.0
+        for k in range(self.n_layers):
+            r0, r1, c0, c1 = _layer_box(
+                self._segments,
+                bounds[k],
+                bounds[k + 1],
+                ox,
+                oy,
+                1.0 / p.pitch_x_mm,
+                1.0 / p.pitch_y_mm,
+                self.rows,
+                self.cols,
+            )
+            worst = max(
+                worst,
+                _max_winding(
+                    self._segments,
+                    bounds[k],
+                    bounds[k + 1],
+                    ox + c0 * p.pitch_x_mm,
+                    oy + r0 * p.pitch_y_mm,
+                    1.0 / p.pitch_x_mm,
+                    1.0 / p.pitch_y_mm,
+                    acc[: r1 - r0, : c1 - c0 + 2],
+                ),
+            )
+        return worst
 
     def section_areas_mm2(self) -> np.ndarray:
         """Exact area of each layer's cross-section (mm^2)."""

@@ -226,3 +226,12 @@ def test_heightfield_path_gives_the_same_archive_as_the_slab_mesh():
     assert via_mesh.getvalue() == via_field.getvalue()
     with pytest.raises(ValueError, match="top must stay above"):
         slice_heightfield(np.full((3, 3), -5.0), 0.1, 0.1, 2.0, SL1)
+
+
+def test_winding_number_finds_self_overlap():
+    box = trimesh.creation.box(extents=(10.0, 10.0, 3.0))
+    inner = trimesh.creation.box(extents=(4.0, 4.0, 3.0))
+    inner.apply_translation((3.0, 3.0, 0.5))
+    overlapping = trimesh.util.concatenate([box, inner])  # closed shells, never merged
+    assert slice_mesh(box.vertices, box.faces, SL1).max_winding() == pytest.approx(1.0)
+    assert slice_mesh(overlapping.vertices, overlapping.faces, SL1).max_winding() == pytest.approx(2.0)

@@ -179,56 +179,25 @@ def bench_pipeline(repeats: int) -> StageResult:
     )
 
 
-def bench_noise(repeats: int) -> StageResult:
-    """Noise kernels beside the plain per-point kernel and pyfastnoisesimd (see printapp.bench_noise)."""
-    from printapp.bench_noise import bench_noise as run
+def _lazy(module: str, function: str) -> Callable[[int], StageResult]:
+    """A stage whose module (and its heavy imports) loads only when the stage runs."""
 
-    return run(repeats)
+    def run(repeats: int) -> StageResult:
+        import importlib
 
+        return getattr(importlib.import_module(f"printapp.{module}"), function)(repeats)
 
-def bench_lic(repeats: int) -> StageResult:
-    """2-D LIC beside rlic (see printapp.bench_lic)."""
-    from printapp.bench_lic import bench_lic as run
-
-    return run(repeats)
-
-
-def bench_frames(repeats: int) -> StageResult:
-    """Orthonormal bases: speed and orthonormality (see printapp.bench_lic)."""
-    from printapp.bench_lic import bench_frames as run
-
-    return run(repeats)
-
-
-def bench_slice(repeats: int) -> StageResult:
-    """Slicing beside PrusaSlicer (see printapp.bench_slice)."""
-    from printapp.bench_slice import bench_slice as run
-
-    return run(repeats)
-
-
-def bench_mesh(repeats: int) -> StageResult:
-    """Height map to a closed slab STL beside Blender (see printapp.bench_emboss)."""
-    from printapp.bench_emboss import bench_emboss as run
-
-    return run(repeats)
-
-
-def bench_adaptive(repeats: int) -> StageResult:
-    """Adaptive slab tops: triangles against error (see printapp.bench_adaptive)."""
-    from printapp.bench_adaptive import bench_adaptive as run
-
-    return run(repeats)
+    return run
 
 
 STAGES: dict[str, Callable[[int], StageResult]] = {
-    "noise": bench_noise,
-    "frames": bench_frames,
-    "lic": bench_lic,
-    "slice": bench_slice,
-    "mesh": bench_mesh,
+    "noise": _lazy("bench_noise", "bench_noise"),  # beside the plain kernel and pyfastnoisesimd
+    "frames": _lazy("bench_lic", "bench_frames"),  # orthonormal bases
+    "lic": _lazy("bench_lic", "bench_lic"),  # beside rlic
+    "slice": _lazy("bench_slice", "bench_slice"),  # beside PrusaSlicer
+    "mesh": _lazy("bench_emboss", "bench_emboss"),  # height map to STL beside Blender
     "pitch": bench_pitch,
-    "adaptive": bench_adaptive,
+    "adaptive": _lazy("bench_adaptive", "bench_adaptive"),
     "pipeline": bench_pipeline,
 }
 

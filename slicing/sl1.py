@@ -102,19 +102,8 @@ class Slices:
         Releases the GIL, so layers can be made on threads.
         """
         p = self.profile
-        ox, oy = self.col0 * p.pitch_x_mm, self.row0 * p.pitch_y_mm
+        ox, oy, r0, r1, c0, c1 = self._layer_window(k)
         bounds = self._bounds
-        r0, r1, c0, c1 = _layer_box(
-            self._segments,
-            bounds[k],
-            bounds[k + 1],
-            ox,
-            oy,
-            1.0 / p.pitch_x_mm,
-            1.0 / p.pitch_y_mm,
-            self.rows,
-            self.cols,
-        )
         scratch = {} if scratch is None else scratch
         acc = scratch.get("acc")
         if acc is None or acc.shape != (self.rows, self.cols + 2):
@@ -134,6 +123,24 @@ class Slices:
         )
         return out, r0, c0
 
+    def _layer_window(self, k: int) -> tuple[float, float, int, int, int, int]:
+        """The window's origin (mm) and the rows [r0, r1) and columns [c0, c1) layer k touches."""
+        p = self.profile
+        ox, oy = self.col0 * p.pitch_x_mm, self.row0 * p.pitch_y_mm
+        bounds = self._bounds
+        r0, r1, c0, c1 = _layer_box(
+            self._segments,
+            bounds[k],
+            bounds[k + 1],
+            ox,
+            oy,
+            1.0 / p.pitch_x_mm,
+            1.0 / p.pitch_y_mm,
+            self.rows,
+            self.cols,
+        )
+        return ox, oy, r0, r1, c0, c1
+
     @property
     def _bounds(self) -> np.ndarray:
         cached = getattr(self, "_bounds_cache", None)
@@ -147,22 +154,11 @@ class Slices:
         overlap itself, 2 or more where its surface passes through itself (as the printer sees it).
         """
         p = self.profile
-        ox, oy = self.col0 * p.pitch_x_mm, self.row0 * p.pitch_y_mm
         acc = np.zeros((self.rows, self.cols + 2))
         bounds = self._bounds
         worst = 0.0
         for k in range(self.n_layers):
-            r0, r1, c0, c1 = _layer_box(
-                self._segments,
-                bounds[k],
-                bounds[k + 1],
-                ox,
-                oy,
-                1.0 / p.pitch_x_mm,
-                1.0 / p.pitch_y_mm,
-                self.rows,
-                self.cols,
-            )
+            ox, oy, r0, r1, c0, c1 = self._layer_window(k)
             worst = max(
                 worst,
                 _max_winding(

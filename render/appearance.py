@@ -1,0 +1,184 @@
+"""Appearance from a relief: its BRDF table, a glossmeter's readings, the highlight's shape, a fitted model.
+
+Gloss follows ISO 2813 / ASTM D523: the flux reflected into the receptor aperture
+around the mirror direction, relative to the flux a polished black glass of index
+1.567 reflects there (100 gloss units), at 20, 60 and 85 degrees. The receptor
+apertures (full angles, in the plane of incidence x across it; ISO 2813 Table 1) are
+1.8 x 3.6 degrees at 20, 4.4 x 11.7 at 60 and 4.0 x 6.0 at 85. The source is taken as
+collimated (the standard's source aperture is 0.75 degrees, well inside every
+receptor). Haze is the index of ASTM D4039, ``G60 - G20``: light scattered a few
+degrees around the mirror direction, caught by the wide 60-degree receptor but not
+by the narrow 20-degree one.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from render.brdf_model import FitResult, fit_microfacet, lobe_alpha
+from render.fresnel import fresnel_dielectric
+from render.gonio import BrdfTable, direction_from_angles, estimate_brdf
+
+BLACK_GLASS_INDEX = 1.567
+GLOSS_APERTURES_DEG = {20: (1.8, 3.6), 60: (4.4, 11.7), 85: (4.0, 6.0)}
+"""Receptor apertures (in the plane of incidence, across it), full angles in degrees."""
+
+DEFAULT_INCIDENT_DEG = (
+    (0.0, 0.0),
+    (20.0, 0.0),
+    (40.0, 0.0),
+    (60.0, 0.0),
+    (75.0, 0.0),
+    (40.0, 90.0),
+    (60.0, 90.0),
+)
+"""Incident (theta, phi) in degrees of the default table: a sweep in the xz plane and two across it."""
+
+
+def gloss_units(aperture_fraction: np.ndarray | float, theta_deg: np.ndarray | float) -> np.ndarray:
+    """Specular gloss (GU): aperture reflectance relative to black glass (n = 1.567) at the same angle."""
+    reference = fresnel_dielectric(np.cos(np.radians(theta_deg)), BLACK_GLASS_INDEX)
+    return 100.0 * np.asarray(aperture_fraction) / reference
+
+
+def bin_centres(theta_edges: np.ndarray, phi_edges: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Polar and azimuthal angle (radians) at the centre of each bin: two ``(n_theta, n_phi)`` arrays."""
+    t = 0.5 * (theta_edges[:-1] + theta_edges[1:])
+    p = 0.5 * (phi_edges[:-1] + phi_edges[1:])
+    return np.meshgrid(t, p, indexing="ij")
+
+
+def peak_direction(table: BrdfTable, k: int) -> tuple[float, float]:
+    """(theta, phi) in degrees of the bin holding the most reflected power for incident direction ``k``."""
+    energy = table.f[k] * table.projected_solid_angle
+    it, ip = np.unravel_index(int(np.argmax(energy)), energy.shape)
+    t, p = bin_centres(table.theta_o_edges, table.phi_o_edges)
+    return math.degrees(t[it, ip]), math.degrees(p[it, ip])
+
+
+@dataclass
+class Appearance:
+    """Predicted appearance of a relief: the BRDF table, the glossmeter readings, the fitted model."""
+
+    table: BrdfTable
+    gloss_table: BrdfTable
+    fit: FitResult
+    metrics: dict[str, Any] = field(default_factory=dict)
+
+
+def predict_appearance(
+    heights_mm: np.ndarray,
+    pitch_x_mm: float,
+    pitch_y_mm: float,
+    *,
+    ior: float = 1.5,
+    body_albedo: float = 0.8,
+    incident_deg: tuple[tuple[float, float], ...] = DEFAULT_INCIDENT_DEG,
+    rays: int = 200_000,
+    n_theta: int = 45,
+    n_phi: int = 90,
+    seed: int = 0,
+    periodic: bool = False,
+    distribution: str = "auto",
+) -> Appearance:
+    """Trace a relief's BRDF, read gloss and haze off it, and fit the compact model.
+
+    Parameters
+    ----------
+    heights_mm, pitch_x_mm, pitch_y_mm
+        The relief (see :func:`render.gonio.estimate_brdf`).
+    incident_deg : sequence of (theta, phi) in degrees
+        Incident directions of the table.
+    rays : int
+        Primary rays per incident direction (table and glossmeter alike).
+    periodic : bool
+        Whether the relief tiles seamlessly; a patch cut from a larger relief does not.
+
+    Returns
+    -------
+    Appearance
+        ``metrics`` holds ``albedo`` (per incident direction), ``gloss_gu`` (20/60/85
+        with the plane of incidence along x and along y), ``haze``, ``peak_deg``,
+        ``highlight`` (RMS radius, anisotropy, azimuth) and ``fit`` (parameters and
+        relative error).
+    """
+    inc = np.asarray(incident_deg, dtype=np.float64).reshape(-1, 2)
+    if np.any(inc[:, 0] < 0) or np.any(inc[:, 0] >= 90):
+        raise ValueError("incident_deg: polar angles must lie in [0, 90) degrees")
+    wi = direction_from_angles(np.radians(inc[:, 0]), np.radians(inc[:, 1]))
+    table = estimate_brdf(
+        heights_mm,
+        pitch_x_mm,
+        pitch_y_mm,
+        wi,
+        rays=rays,
+        ior=ior,
+        body_albedo=body_albedo,
+        n_theta=n_theta,
+        n_phi=n_phi,
+        seed=seed,
+        periodic=periodic,
+    )
+    angles = sorted(GLOSS_APERTURES_DEG)
+    gloss_inc = [(a, phi) for phi in (0.0, 90.0) for a in angles]
+    g_wi = direction_from_angles(np.radians([a for a, _ in gloss_inc]), np.radians([p for _, p in gloss_inc]))
+    apertures = np.radians(
+        [[0.5 * GLOSS_APERTURES_DEG[a][0], 0.5 * GLOSS_APERTURES_DEG[a][1]] for a, _ in gloss_inc]
+    )
+    gloss_table = estimate_brdf(
+        heights_mm,
+        pitch_x_mm,
+        pitch_y_mm,
+        g_wi,
+        rays=rays,
+        ior=ior,
+        body_albedo=body_albedo,
+        n_theta=18,
+        n_phi=36,
+        seed=seed + 1,
+        aperture_rad=apertures,
+        periodic=periodic,
+    )
+    gu = gloss_units(gloss_table.aperture, np.array([a for a, _ in gloss_inc]))
+    gloss = {str(a): round(float(gu[i]), 3) for i, a in enumerate(angles)}
+    gloss_y = {str(a): round(float(gu[len(angles) + i]), 3) for i, a in enumerate(angles)}
+    fit = fit_microfacet(
+        wi,
+        table.f,
+        table.f_specular,
+        table.stderr_specular,
+        table.theta_o_edges,
+        table.phi_o_edges,
+        ior=ior,
+        distribution=distribution,
+        stderr=table.stderr,
+    )
+    normal = int(np.argmin(inc[:, 0]))
+    # The highlight's shape from the surface-reflection lobe at the most normal incidence.
+    alpha_long, alpha_short, azimuth = lobe_alpha(
+        table.f_specular[normal], table.theta_o_edges, table.phi_o_edges
+    )
+    metrics: dict[str, Any] = {
+        "incident_deg": inc.tolist(),
+        "albedo": [round(float(a), 5) for a in table.albedo],
+        "albedo_stderr": [float(f"{a:.3g}") for a in table.albedo_stderr],
+        "gloss_gu": gloss,
+        "gloss_gu_plane_yz": gloss_y,
+        "haze": round(gloss["60"] - gloss["20"], 3),
+        "peak_deg": [[round(v, 2) for v in peak_direction(table, k)] for k in range(len(inc))],
+        "highlight": {
+            "at_incidence_deg": inc[normal].tolist(),
+            "alpha_long": round(alpha_long, 5),
+            "alpha_short": round(alpha_short, 5),
+            "anisotropy": round(alpha_long / alpha_short, 4),
+            "azimuth_deg": round(math.degrees(azimuth), 3),
+        },
+        "fit": {**fit.model.as_dict(), "relative_error": round(fit.relative_error, 5), "bins": fit.bins_used},
+        "rays_per_direction": int(rays),
+        "lost_fraction": float(np.max(np.concatenate([table.lost, gloss_table.lost]))),
+    }
+    return Appearance(table=table, gloss_table=gloss_table, fit=fit, metrics=metrics)

@@ -1,0 +1,735 @@
+"""A virtual gonioreflectometer: the BRDF of a printed relief, by tracing rays through it.
+
+The talk's recipe ("Simulation to go from micro to macro", "Ray tracing specular
+surfaces", "Bidirectional Reflectance Distribution Function"): light is a collimated
+beam of irradiance ``E`` on a patch of macro area ``A``; rays start uniformly over the
+patch (so each carries the same share of the incident flux), are followed through
+every bounce on the microgeometry, and escaping rays are binned by direction. The
+measurement equation then gives the bin-averaged BRDF
+
+    f_bin = (Phi_bin / Phi_in) / integral_bin cos(theta_o) d omega_o      [1/sr].
+
+The surface is a height field on a regular grid, triangulated with two triangles per
+cell (diagonal from sample (r, c) to (r+1, c+1), as the printable slab is), and
+treated as periodic: the tile repeats in x and y, so no ray is lost at its sides.
+
+At each hit the ray's energy is split, not sampled: the Fresnel fraction ``R``
+(unpolarised, dielectric, index ``n``) continues as the mirror reflection, and the
+rest enters the resin. The resin is an opaque, pigmented body: light that enters it
+is scattered by pigment within a few tens of micrometres (the transport mean free path
+of pigmented resins, far below the relief's facets), forgets its direction, and comes
+back out close to where it went in. So it is modelled, as Mitsuba's ``plastic`` and
+Weidlich & Wilkie (2007) do, by a Lambertian body of albedo ``rho`` under the smooth
+interface, with the internal reflections summed in closed form: the light leaving
+the facet has radiance proportional to ``1 - R(theta_o)`` and total
+
+    (1 - R(theta_i)) * rho * (1 - F_dr,int) / (1 - rho * F_dr,int),
+
+where ``F_dr,int`` is the interface's diffuse reflectance seen from inside. That
+light then continues as a ray that may hit the relief again. Translucency beyond the
+facet scale is the Lorenz-Mie stage's business, not this one's.
+
+The tracer walks the grid cell by cell (a 2-D DDA) with a max-mipmap: blocks of
+2^L x 2^L cells whose highest sample lies below the ray are skipped whole (Tevs,
+Ihrke & Seidel 2008, "Maximum mipmaps for fast, accurate, and scalable dynamic height
+field rendering"). In each cell, the signed height of the ray over the surface is
+linear on each triangle, and its value at a cell's exit is carried into the next cell
+instead of being recomputed, so a ray cannot slip between two triangles through
+rounding: the test is watertight by construction. A ray leaving a facet is never
+tested against that facet's plane again (a straight ray cannot return to a plane it
+leaves), which is the self-intersection offset, with no epsilon.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from numba import njit, prange
+
+from noise._hash import _mix64, _rnd, seed_key
+from render.fresnel import _fresnel, diffuse_fresnel_reflectance
+
+_STACK = 64  # pending rays per primary ray (each hit pushes at most two)
+_LOCAL = 64  # distinct deposits per primary ray before they are flushed
+_MAX_DEPTH = 64  # bounces along one path
+_MAX_STEPS = 1 << 22  # cells and blocks visited by one ray before it counts as lost
+_ROULETTE_W = 1e-3  # paths below this weight play Russian roulette (unbiased)
+_CHUNKS = 8  # fixed chunks per incident direction: results do not depend on threading
+
+_INF = np.inf
+
+
+@njit(cache=True)
+def _trace(
+    h, px, py, mip, mip_off, mip_nx, n_levels, zmax, zmin, ox, oy, oz, dx, dy, dz, skip_ci, skip_cj, skip_tri
+):
+    """First hit of a ray with the periodic height field.
+
+    Returns ``(status, t, nx, ny, nz, ci, cj, tri, steps)``: status 0 escaped (above every
+    sample, going up), 1 hit (unwrapped cell ``ci, cj``, triangle ``tri`` 0 lower /
+    1 upper, unit normal), 2 lost (step budget exhausted).
+    """
+    ny_, nx_ = h.shape
+    if skip_tri >= 0:
+        ci, cj = skip_ci, skip_cj
+        d_valid = True
+    else:
+        ci = int(math.floor(ox / px))
+        cj = int(math.floor(oy / py))
+        d_valid = False
+    d_prev = 0.0
+    t = 0.0
+    level = 0
+    steps = 0
+    while steps < _MAX_STEPS:
+        steps += 1
+        z = oz + t * dz
+        if dz >= 0.0 and z >= zmax:
+            return 0, t, 0.0, 0.0, 0.0, ci, cj, -1, steps
+        wi_ = ci % nx_
+        wj_ = cj % ny_
+        size = 1 << level
+        bi = wi_ >> level
+        bj = wj_ >> level
+        xa = ci - wi_ + bi * size
+        xb = ci - wi_ + min((bi + 1) * size, nx_)
+        ya = cj - wj_ + bj * size
+        yb = cj - wj_ + min((bj + 1) * size, ny_)
+        if dx > 0.0:
+            tx = (xb * px - ox) / dx
+        elif dx < 0.0:
+            tx = (xa * px - ox) / dx
+        else:
+            tx = _INF
+        if dy > 0.0:
+            ty = (yb * py - oy) / dy
+        elif dy < 0.0:
+            ty = (ya * py - oy) / dy
+        else:
+            ty = _INF
+        t_exit = min(tx, ty)
+        if t_exit == _INF:
+            # Vertical ray: it leaves through the top or meets the surface below.
+            if dz > 0.0:
+                return 0, t, 0.0, 0.0, 0.0, ci, cj, -1, steps
+            t_exit = t + (z - zmin + 1.0) / (-dz)
+        if t_exit < t:
+            t_exit = t
+        z_exit = oz + t_exit * dz
+        # Strictly above the block's highest sample: skip it whole. (A cell skipped this
+        # way starts the next cell's height chain afresh; the ray is above both there.)
+        skip = min(z, z_exit) > mip[mip_off[level] + bj * mip_nx[level] + bi]
+        if not skip and level > 0:
+            level -= 1
+            continue
+        if not skip:
+            # Level 0: the cell (ci, cj). u, v are cell-local coordinates in [0, 1].
+            c1 = (wi_ + 1) % nx_
+            r1 = (wj_ + 1) % ny_
+            h00 = h[wj_, wi_]
+            h10 = h[wj_, c1]
+            h01 = h[r1, wi_]
+            h11 = h[r1, c1]
+            u0 = (ox - ci * px) / px
+            v0 = (oy - cj * py) / py
+            du = dx / px
+            dv = dy / py
+            ta = t
+            t_diag = _INF
+            if du != dv:
+                t_diag = (v0 - u0) / (du - dv)
+            for seg in range(2):
+                if seg == 0:
+                    a = ta
+                    b = t_diag if ta < t_diag < t_exit else t_exit
+                else:
+                    if not (ta < t_diag < t_exit):
+                        break
+                    a = t_diag
+                    b = t_exit
+                tm = 0.5 * (a + b)
+                lower = (u0 + tm * du) >= (v0 + tm * dv)
+                if lower:
+                    su = h10 - h00
+                    sv = h11 - h10
+                    tri = 0
+                else:
+                    su = h11 - h01
+                    sv = h01 - h00
+                    tri = 1
+                gx = su / px
+                gy = sv / py
+                if tri == skip_tri and ci == skip_ci and cj == skip_cj:
+                    # The facet the ray leaves: d(t) = t * slope exactly, never a hit.
+                    d_b = b * (dz - gx * dx - gy * dy)
+                else:
+                    ub = u0 + b * du
+                    vb = v0 + b * dv
+                    d_b = (oz + b * dz) - (h00 + ub * su + vb * sv)
+                    if d_b < 0.0:
+                        if d_valid:
+                            d_a = max(d_prev, 0.0)
+                        else:
+                            ua = u0 + a * du
+                            va = v0 + a * dv
+                            d_a = max((oz + a * dz) - (h00 + ua * su + va * sv), 0.0)
+                        t_hit = a + d_a * (b - a) / (d_a - d_b)
+                        inv = 1.0 / math.sqrt(gx * gx + gy * gy + 1.0)
+                        return 1, t_hit, -gx * inv, -gy * inv, inv, ci, cj, tri, steps
+                d_prev = d_b
+                d_valid = True
+        else:
+            d_valid = False
+        # Step into the next block (or cell) along the ray.
+        t = t_exit
+        if tx <= ty:
+            ci = xb if dx > 0.0 else xa - 1
+            if tx == ty:
+                cj = yb if dy > 0.0 else ya - 1
+            else:
+                cj = min(max(int(math.floor((oy + t * dy) / py)), ya), yb - 1)
+        else:
+            cj = yb if dy > 0.0 else ya - 1
+            ci = min(max(int(math.floor((ox + t * dx) / px)), xa), xb - 1)
+        if skip and level < n_levels - 1:
+            level += 1
+    return 2, t, 0.0, 0.0, 0.0, ci, cj, -1, steps
+
+
+@njit(cache=True, inline="always")
+def _roulette(w: float, u: float) -> float:
+    """Russian roulette: a small weight survives, raised to the threshold, with probability w / threshold."""
+    return _ROULETTE_W if u * _ROULETTE_W < w else 0.0
+
+
+@njit(cache=True, inline="always")
+def _deposit(local_bin, local_all, local_spec, n_local, acc_all, sq_all, acc_spec, sq_spec, c, b, w, spec):
+    for k in range(n_local):
+        if local_bin[k] == b:
+            local_all[k] += w
+            if spec:
+                local_spec[k] += w
+            return n_local
+    if n_local == _LOCAL:
+        # Out of room: add straight in (the variance estimate loses a cross term only).
+        acc_all[c, b] += w
+        sq_all[c, b] += w * w
+        if spec:
+            acc_spec[c, b] += w
+            sq_spec[c, b] += w * w
+        return n_local
+    local_bin[n_local] = b
+    local_all[n_local] = w
+    local_spec[n_local] = w if spec else 0.0
+    return n_local + 1
+
+
+@njit(cache=True, parallel=True)
+def _gonio(
+    h,
+    px,
+    py,
+    mip,
+    mip_off,
+    mip_nx,
+    n_levels,
+    zmax,
+    zmin,
+    wis,
+    rays,
+    window,
+    mirror,
+    e_perp,
+    ap_in,
+    ap_perp,
+    eta,
+    body_factor,
+    perfect,
+    n_theta,
+    n_phi,
+    key,
+    acc_all,
+    sq_all,
+    acc_spec,
+    sq_spec,
+    scalars,
+):
+    ny_, nx_ = h.shape
+    period_x = nx_ * px
+    period_y = ny_ * py
+    n_dir = wis.shape[0]
+    for job in prange(n_dir * _CHUNKS):
+        d_idx = job // _CHUNKS
+        chunk = job % _CHUNKS
+        n_rays = rays[d_idx]
+        k0 = chunk * n_rays // _CHUNKS
+        k1 = (chunk + 1) * n_rays // _CHUNKS
+        st_o = np.empty((_STACK, 3))
+        st_d = np.empty((_STACK, 3))
+        st_w = np.empty(_STACK)
+        st_cell = np.empty((_STACK, 3), dtype=np.int64)
+        st_depth = np.empty(_STACK, dtype=np.int64)
+        st_spec = np.empty(_STACK, dtype=np.bool_)
+        local_bin = np.empty(_LOCAL, dtype=np.int64)
+        local_all = np.empty(_LOCAL)
+        local_spec = np.empty(_LOCAL)
+        wix, wiy, wiz = wis[d_idx, 0], wis[d_idx, 1], wis[d_idx, 2]
+        for k in range(k0, k1):
+            ray_key = _mix64(key ^ (np.uint64(d_idx) << np.uint64(40)) ^ np.uint64(k))
+            counter = np.uint64(0)
+            # Uniform over the lit window on the mean plane z = 0, started at z = zmax.
+            x0 = (window[d_idx, 0] + _rnd(ray_key, counter) * window[d_idx, 1]) * px + wix / wiz * zmax
+            y0 = (
+                window[d_idx, 2] + _rnd(ray_key, counter + np.uint64(1)) * window[d_idx, 3]
+            ) * py + wiy / wiz * zmax
+            x0 -= math.floor(x0 / period_x) * period_x
+            y0 -= math.floor(y0 / period_y) * period_y
+            counter += np.uint64(2)
+            st_o[0, 0], st_o[0, 1], st_o[0, 2] = x0, y0, zmax
+            st_d[0, 0], st_d[0, 1], st_d[0, 2] = -wix, -wiy, -wiz
+            st_w[0] = 1.0
+            st_cell[0, 0], st_cell[0, 1], st_cell[0, 2] = 0, 0, -1
+            st_depth[0] = 0
+            st_spec[0] = True
+            top = 1
+            n_local = 0
+            aperture = 0.0
+            escaped = 0.0
+            while top > 0:
+                top -= 1
+                ox, oy, oz = st_o[top, 0], st_o[top, 1], st_o[top, 2]
+                dx, dy, dz = st_d[top, 0], st_d[top, 1], st_d[top, 2]
+                w = st_w[top]
+                sci, scj, stri = st_cell[top, 0], st_cell[top, 1], st_cell[top, 2]
+                depth = st_depth[top]
+                spec = st_spec[top]
+                status, t, nx, ny, nz, ci, cj, tri, n_steps = _trace(
+                    h,
+                    px,
+                    py,
+                    mip,
+                    mip_off,
+                    mip_nx,
+                    n_levels,
+                    zmax,
+                    zmin,
+                    ox,
+                    oy,
+                    oz,
+                    dx,
+                    dy,
+                    dz,
+                    sci,
+                    scj,
+                    stri,
+                )
+                scalars[job, 5] += n_steps
+                scalars[job, 6] += 1.0
+                if status == 2:
+                    scalars[job, 4] += w
+                    continue
+                if status == 0:
+                    escaped += w
+                    theta = math.acos(min(dz, 1.0))
+                    phi = math.atan2(dy, dx)
+                    if phi < 0.0:
+                        phi += 2.0 * math.pi
+                    it = min(int(theta * (2.0 / math.pi) * n_theta), n_theta - 1)
+                    ip = min(int(phi * (0.5 / math.pi) * n_phi), n_phi - 1)
+                    n_local = _deposit(
+                        local_bin,
+                        local_all,
+                        local_spec,
+                        n_local,
+                        acc_all,
+                        sq_all,
+                        acc_spec,
+                        sq_spec,
+                        job,
+                        it * n_phi + ip,
+                        w,
+                        spec,
+                    )
+                    if ap_in[d_idx] > 0.0:
+                        ex, ey, ez = e_perp[d_idx, 0], e_perp[d_idx, 1], e_perp[d_idx, 2]
+                        across = dx * ex + dy * ey + dz * ez
+                        qx, qy, qz = dx - across * ex, dy - across * ey, dz - across * ez
+                        qn = math.sqrt(qx * qx + qy * qy + qz * qz)
+                        if qn > 0.0:
+                            mx, my, mz = mirror[d_idx, 0], mirror[d_idx, 1], mirror[d_idx, 2]
+                            c_in = min(max((qx * mx + qy * my + qz * mz) / qn, -1.0), 1.0)
+                            if (
+                                math.acos(c_in) <= ap_in[d_idx]
+                                and abs(math.asin(min(max(across, -1.0), 1.0))) <= ap_perp[d_idx]
+                            ):
+                                aperture += w
+                    continue
+                if depth >= _MAX_DEPTH:
+                    scalars[job, 4] += w
+                    continue
+                # A hit: wrap the point back into the base tile, keeping its cell.
+                hx = ox + t * dx
+                hy = oy + t * dy
+                hz = oz + t * dz
+                tile_i = ci - ci % nx_
+                tile_j = cj - cj % ny_
+                hx -= tile_i * px
+                hy -= tile_j * py
+                ci -= tile_i
+                cj -= tile_j
+                cos_i = -(dx * nx + dy * ny + dz * nz)
+                fr = 1.0 if perfect else _fresnel(cos_i, eta)
+                # Mirror reflection keeps the specular flag.
+                wr = w * fr
+                if wr > 0.0:
+                    if wr < _ROULETTE_W:
+                        wr = _roulette(wr, _rnd(ray_key, counter))
+                        counter += np.uint64(1)
+                    if wr > 0.0 and top < _STACK:
+                        st_o[top, 0], st_o[top, 1], st_o[top, 2] = hx, hy, hz
+                        st_d[top, 0] = dx + 2.0 * cos_i * nx
+                        st_d[top, 1] = dy + 2.0 * cos_i * ny
+                        st_d[top, 2] = dz + 2.0 * cos_i * nz
+                        st_w[top] = wr
+                        st_cell[top, 0], st_cell[top, 1], st_cell[top, 2] = ci, cj, tri
+                        st_depth[top] = depth + 1
+                        st_spec[top] = spec
+                        top += 1
+                    elif wr > 0.0:
+                        scalars[job, 4] += wr
+                # The body: a cosine-distributed ray leaving the facet, weighted by 1 - R(theta_o).
+                if body_factor > 0.0 and not perfect:
+                    u1 = _rnd(ray_key, counter)
+                    u2 = _rnd(ray_key, counter + np.uint64(1))
+                    counter += np.uint64(2)
+                    r = math.sqrt(u1)
+                    lx = r * math.cos(2.0 * math.pi * u2)
+                    ly = r * math.sin(2.0 * math.pi * u2)
+                    lz = math.sqrt(max(1.0 - u1, 0.0))
+                    s = math.copysign(1.0, nz)
+                    aa = -1.0 / (s + nz)
+                    bb = nx * ny * aa
+                    b1x, b1y, b1z = 1.0 + s * nx * nx * aa, s * bb, -s * nx
+                    b2x, b2y, b2z = bb, s + ny * ny * aa, -ny
+                    ddx = lx * b1x + ly * b2x + lz * nx
+                    ddy = lx * b1y + ly * b2y + lz * ny
+                    ddz = lx * b1z + ly * b2z + lz * nz
+                    wd = w * (1.0 - fr) * body_factor * (1.0 - _fresnel(lz, eta))
+                    if wd < _ROULETTE_W:
+                        wd = _roulette(wd, _rnd(ray_key, counter))
+                        counter += np.uint64(1)
+                    if wd > 0.0 and top < _STACK:
+                        st_o[top, 0], st_o[top, 1], st_o[top, 2] = hx, hy, hz
+                        st_d[top, 0], st_d[top, 1], st_d[top, 2] = ddx, ddy, ddz
+                        st_w[top] = wd
+                        st_cell[top, 0], st_cell[top, 1], st_cell[top, 2] = ci, cj, tri
+                        st_depth[top] = depth + 1
+                        st_spec[top] = False
+                        top += 1
+                    elif wd > 0.0:
+                        scalars[job, 4] += wd
+            for m in range(n_local):
+                b = local_bin[m]
+                v = local_all[m]
+                acc_all[job, b] += v
+                sq_all[job, b] += v * v
+                v = local_spec[m]
+                if v != 0.0:
+                    acc_spec[job, b] += v
+                    sq_spec[job, b] += v * v
+            scalars[job, 0] += escaped
+            scalars[job, 1] += escaped * escaped
+            scalars[job, 2] += aperture
+            scalars[job, 3] += aperture * aperture
+
+
+def max_mipmap(heights: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+    """Max-mipmap of a periodic height field's cells, packed flat.
+
+    Level 0 holds each cell's highest corner (cells wrap: the last column's cells
+    reach back to the first column). Level L holds the maximum over blocks of
+    2^L x 2^L cells; blocks never straddle the tile's seam (the last block in a row
+    or column is truncated), so the hierarchy works for any grid size.
+
+    Returns ``(flat, offsets, level_nx, n_levels)``.
+    """
+    h = np.asarray(heights, dtype=np.float64)
+    cell = np.maximum(
+        np.maximum(h, np.roll(h, -1, axis=1)), np.maximum(np.roll(h, -1, axis=0), np.roll(h, -1, axis=(0, 1)))
+    )
+    levels = [cell]
+    while levels[-1].shape[0] > 1 or levels[-1].shape[1] > 1:
+        prev = levels[-1]
+        rows = np.maximum.reduceat(prev, np.arange(0, prev.shape[0], 2), axis=0)
+        levels.append(np.maximum.reduceat(rows, np.arange(0, prev.shape[1], 2), axis=1))
+    offsets = np.cumsum([0] + [lv.size for lv in levels[:-1]]).astype(np.int64)
+    flat = np.concatenate([lv.ravel() for lv in levels])
+    level_nx = np.array([lv.shape[1] for lv in levels], dtype=np.int64)
+    return flat, offsets, level_nx, len(levels)
+
+
+@dataclass
+class BrdfTable:
+    """A tabulated, bin-averaged BRDF from the virtual gonioreflectometer.
+
+    Attributes
+    ----------
+    wi : (n_in, 3) array
+        Incident directions (unit, pointing away from the surface; z is the macro normal).
+    theta_o_edges, phi_o_edges : arrays
+        Bin edges of the outgoing direction (radians): theta in [0, pi/2], phi in [0, 2 pi).
+    f : (n_in, n_theta, n_phi) array
+        Bin-averaged BRDF (1/sr): the fraction of incident power reflected into the bin
+        divided by the bin's projected solid angle, ``integral cos(theta_o) d omega_o``.
+    stderr : array like ``f``
+        Standard error of ``f`` (from the spread over independent primary rays).
+    f_specular, stderr_specular : arrays like ``f``
+        The part of ``f`` carried by paths that never entered the resin body
+        (surface reflection only, any number of bounces).
+    albedo, albedo_stderr : (n_in,) arrays
+        Directional albedo: the fraction of incident power that escapes.
+    lost : (n_in,) array
+        Fraction of incident power dropped by safety limits (stack depth, bounce
+        count, step budget); zero in practice, and reported so that it can be checked.
+    aperture, aperture_stderr : (n_in,) arrays
+        Fraction of incident power reflected into the receptor aperture around the
+        mirror direction (for gloss; zero where no aperture was asked for).
+    ior, body_albedo : float
+        Refractive index of the resin and albedo of its body.
+    rays : (n_in,) int array
+        Primary rays per incident direction.
+    """
+
+    wi: np.ndarray
+    theta_o_edges: np.ndarray
+    phi_o_edges: np.ndarray
+    f: np.ndarray
+    stderr: np.ndarray
+    f_specular: np.ndarray
+    stderr_specular: np.ndarray
+    albedo: np.ndarray
+    albedo_stderr: np.ndarray
+    lost: np.ndarray
+    aperture: np.ndarray
+    aperture_stderr: np.ndarray
+    ior: float
+    body_albedo: float
+    rays: np.ndarray
+    extra: dict = field(default_factory=dict)
+
+    @property
+    def projected_solid_angle(self) -> np.ndarray:
+        """``integral_bin cos(theta) d omega`` for every (theta, phi) bin (sr)."""
+        return projected_solid_angle(self.theta_o_edges, self.phi_o_edges)
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """The table as the arrays of ``brdf.npz``."""
+        return {
+            "wi": self.wi,
+            "theta_o_edges": self.theta_o_edges,
+            "phi_o_edges": self.phi_o_edges,
+            "f": self.f,
+            "stderr": self.stderr,
+            "f_specular": self.f_specular,
+            "stderr_specular": self.stderr_specular,
+            "albedo": self.albedo,
+            "albedo_stderr": self.albedo_stderr,
+            "lost": self.lost,
+            "ior": np.float64(self.ior),
+            "body_albedo": np.float64(self.body_albedo),
+            "rays": self.rays,
+        }
+
+
+def projected_solid_angle(theta_edges: np.ndarray, phi_edges: np.ndarray) -> np.ndarray:
+    """``integral cos(theta) sin(theta) dtheta dphi`` over each bin (sr): (n_theta, n_phi)."""
+    s2 = np.sin(np.asarray(theta_edges)) ** 2
+    return 0.5 * np.outer(np.diff(s2), np.diff(np.asarray(phi_edges)))
+
+
+def direction_from_angles(theta_rad: np.ndarray, phi_rad: np.ndarray) -> np.ndarray:
+    """Unit vectors (n, 3) from polar angle (from +z) and azimuth (from +x towards +y)."""
+    theta = np.atleast_1d(np.asarray(theta_rad, dtype=np.float64))
+    phi = np.atleast_1d(np.asarray(phi_rad, dtype=np.float64))
+    return np.column_stack([np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), np.cos(theta)])
+
+
+def body_factor(body_albedo: float, ior: float) -> float:
+    """``rho / (n^2 (1 - rho F_dr,int))``: the body's outgoing weight per ``(1-R_i)(1-R_o)``."""
+    if body_albedo <= 0.0:
+        return 0.0
+    f_int = diffuse_fresnel_reflectance(1.0 / ior)
+    return body_albedo / (ior * ior * (1.0 - body_albedo * f_int))
+
+
+def estimate_brdf(
+    heights_mm: np.ndarray,
+    pitch_x_mm: float,
+    pitch_y_mm: float,
+    wi: np.ndarray,
+    *,
+    rays: int | np.ndarray = 200_000,
+    ior: float = 1.5,
+    body_albedo: float = 0.0,
+    n_theta: int = 90,
+    n_phi: int = 180,
+    seed: int = 0,
+    aperture_rad: np.ndarray | None = None,
+    perfect_reflector: bool = False,
+    periodic: bool = True,
+) -> BrdfTable:
+    """Bin-averaged BRDF of a periodic height field by tracing rays through it.
+
+    Parameters
+    ----------
+    heights_mm : (ny, nx) array
+        Heights (mm) on a regular grid; the tile is treated as periodic (sample
+        ``nx`` is sample 0 again), so an ``ny x nx`` grid is ``ny x nx`` cells.
+    pitch_x_mm, pitch_y_mm : float
+        Sample spacing (mm). Only ratios of heights to pitches matter.
+    wi : (n_in, 3) array
+        Incident directions, unit, pointing away from the surface (z > 0).
+    rays : int or (n_in,) int array
+        Primary rays per direction. The error of each bin falls as 1/sqrt(rays).
+    ior : float
+        Refractive index of the resin (air outside).
+    body_albedo : float
+        Albedo of the pigmented body under the interface (0 for a black resin).
+    n_theta, n_phi : int
+        Uniform bins over theta_o in [0, 90 deg] and phi_o in [0, 360 deg).
+    seed : int
+        Seed of the rays; the same seed gives byte-identical tables.
+    aperture_rad : (n_in, 2) array, optional
+        Half-widths (in the plane of incidence, across it) of a receptor aperture
+        centred on the mirror direction, for gloss; 0 switches it off.
+    perfect_reflector : bool
+        Reflect everything (R = 1, no body): a white-furnace test of the tracer.
+    periodic : bool
+        True when the tile really repeats (its last sample continues into its first).
+        False for a patch cut out of a larger relief: the seam between its opposite
+        edges is then a step that is not part of the relief, so the beam lights only
+        the patch's interior, kept as far from the seams as light at each incidence
+        travels down through the relief's height range (at most a quarter of the
+        patch on each side).
+
+    Returns
+    -------
+    BrdfTable
+    """
+    h = np.ascontiguousarray(heights_mm, dtype=np.float64)
+    if h.ndim != 2 or min(h.shape) < 2 or not np.all(np.isfinite(h)):
+        raise ValueError("heights_mm: expected a finite 2-D array of at least 2x2 samples")
+    if not (pitch_x_mm > 0 and pitch_y_mm > 0):
+        raise ValueError("pitch: expected positive pixel pitches (mm)")
+    wis = np.atleast_2d(np.asarray(wi, dtype=np.float64))
+    if wis.shape[1] != 3 or not np.all(np.isfinite(wis)):
+        raise ValueError("wi: expected an (n, 3) array of finite directions")
+    wis = wis / np.linalg.norm(wis, axis=1, keepdims=True)
+    if np.any(wis[:, 2] <= 0.0):
+        raise ValueError("wi: incident directions must point away from the surface (z > 0)")
+    if not (ior >= 1.0 and math.isfinite(ior)):
+        raise ValueError(f"ior: expected a refractive index >= 1, got {ior}")
+    if not 0.0 <= body_albedo <= 1.0:
+        raise ValueError(f"body_albedo: expected a value in [0, 1], got {body_albedo}")
+    n_in = wis.shape[0]
+    ray_counts = np.broadcast_to(np.asarray(rays, dtype=np.int64), (n_in,)).copy()
+    if np.any(ray_counts < 2):
+        raise ValueError("rays: expected at least 2 rays per direction")
+    ap = np.zeros((n_in, 2)) if aperture_rad is None else np.asarray(aperture_rad, dtype=np.float64)
+    ap = np.broadcast_to(ap, (n_in, 2))
+    mirror = wis * np.array([-1.0, -1.0, 1.0])
+    e_perp = np.column_stack([-wis[:, 1], wis[:, 0], np.zeros(n_in)])
+    norm = np.linalg.norm(e_perp, axis=1)
+    e_perp[norm == 0.0] = (0.0, 1.0, 0.0)
+    e_perp /= np.linalg.norm(e_perp, axis=1, keepdims=True)
+
+    # Heights relative to their mean keep coordinates small; pitches stay in mm.
+    h = h - h.mean()
+    mip, mip_off, mip_nx, n_levels = max_mipmap(h)
+    zmax, zmin = float(h.max()), float(h.min())
+    ny, nx = h.shape
+    window = np.zeros((n_in, 4))  # first cell and extent (cells) of the lit window, x then y
+    window[:, 1], window[:, 3] = nx, ny
+    if not periodic:
+        travel = (zmax - zmin) * np.hypot(wis[:, 0], wis[:, 1]) / wis[:, 2]
+        margin_x = np.minimum(np.ceil(travel / pitch_x_mm) + 2.0, nx // 4)
+        margin_y = np.minimum(np.ceil(travel / pitch_y_mm) + 2.0, ny // 4)
+        window[:, 0], window[:, 1] = margin_x, nx - 2 * margin_x
+        window[:, 2], window[:, 3] = margin_y, ny - 2 * margin_y
+    n_jobs = n_in * _CHUNKS
+    n_bins = n_theta * n_phi
+    acc_all = np.zeros((n_jobs, n_bins))
+    sq_all = np.zeros((n_jobs, n_bins))
+    acc_spec = np.zeros((n_jobs, n_bins))
+    sq_spec = np.zeros((n_jobs, n_bins))
+    scalars = np.zeros((n_jobs, 7))
+    _gonio(
+        h,
+        float(pitch_x_mm),
+        float(pitch_y_mm),
+        mip,
+        mip_off,
+        mip_nx,
+        n_levels,
+        zmax,
+        zmin,
+        wis,
+        ray_counts,
+        window,
+        mirror,
+        e_perp,
+        np.ascontiguousarray(ap[:, 0]),
+        np.ascontiguousarray(ap[:, 1]),
+        float(ior),
+        0.0 if perfect_reflector else body_factor(body_albedo, ior),
+        bool(perfect_reflector),
+        int(n_theta),
+        int(n_phi),
+        seed_key(seed),
+        acc_all,
+        sq_all,
+        acc_spec,
+        sq_spec,
+        scalars,
+    )
+
+    def per_dir(a: np.ndarray) -> np.ndarray:
+        return a.reshape(n_in, _CHUNKS, *a.shape[1:]).sum(axis=1)
+
+    n = ray_counts.astype(np.float64)
+    theta_edges = np.linspace(0.0, math.pi / 2, n_theta + 1)
+    phi_edges = np.linspace(0.0, 2 * math.pi, n_phi + 1)
+    omega = projected_solid_angle(theta_edges, phi_edges)
+
+    def mean_and_error(acc: np.ndarray, sq: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        mean = acc / n.reshape((-1,) + (1,) * (acc.ndim - 1))
+        second = sq / n.reshape((-1,) + (1,) * (acc.ndim - 1))
+        var = np.clip(second - mean * mean, 0.0, None) / (n.reshape((-1,) + (1,) * (acc.ndim - 1)) - 1.0)
+        return mean, np.sqrt(var)
+
+    f, se = mean_and_error(per_dir(acc_all), per_dir(sq_all))
+    fs, ses = mean_and_error(per_dir(acc_spec), per_dir(sq_spec))
+    shape = (n_in, n_theta, n_phi)
+    s = per_dir(scalars)
+    albedo, albedo_se = mean_and_error(s[:, 0], s[:, 1])
+    aperture, aperture_se = mean_and_error(s[:, 2], s[:, 3])
+    return BrdfTable(
+        wi=wis,
+        theta_o_edges=theta_edges,
+        phi_o_edges=phi_edges,
+        f=f.reshape(shape) / omega,
+        stderr=se.reshape(shape) / omega,
+        f_specular=fs.reshape(shape) / omega,
+        stderr_specular=ses.reshape(shape) / omega,
+        albedo=albedo,
+        albedo_stderr=albedo_se,
+        lost=s[:, 4] / n,
+        aperture=aperture,
+        aperture_stderr=aperture_se,
+        ior=float(ior),
+        body_albedo=float(body_albedo),
+        rays=ray_counts,
+        extra={"segments": s[:, 6], "steps": s[:, 5]},
+    )

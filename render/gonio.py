@@ -611,8 +611,8 @@ def estimate_brdf(
         False for a patch cut out of a larger relief: the seam between its opposite
         edges is then a step that is not part of the relief, so the beam lights only
         the patch's interior, kept as far from the seams as light at each incidence
-        travels down through the relief's height range (at most a quarter of the
-        patch on each side).
+        travels down through the relief's height range (at least an eighth and at
+        most a quarter of the patch on each side).
 
     Returns
     -------
@@ -654,8 +654,9 @@ def estimate_brdf(
     window[:, 1], window[:, 3] = nx, ny
     if not periodic:
         travel = (zmax - zmin) * np.hypot(wis[:, 0], wis[:, 1]) / wis[:, 2]
-        margin_x = np.minimum(np.ceil(travel / pitch_x_mm) + 2.0, nx // 4)
-        margin_y = np.minimum(np.ceil(travel / pitch_y_mm) + 2.0, ny // 4)
+        # At least an eighth of the patch too, for reflected light that travels sideways.
+        margin_x = np.minimum(np.maximum(np.ceil(travel / pitch_x_mm) + 2.0, nx // 8), nx // 4)
+        margin_y = np.minimum(np.maximum(np.ceil(travel / pitch_y_mm) + 2.0, ny // 8), ny // 4)
         window[:, 0], window[:, 1] = margin_x, nx - 2 * margin_x
         window[:, 2], window[:, 3] = margin_y, ny - 2 * margin_y
     n_jobs = n_in * _CHUNKS

@@ -1,0 +1,323 @@
+"""The virtual gonioreflectometer, its validation ladder, and where it fails.
+
+Closed forms (Fresnel on a flat surface, the body's diffuse term), the single-scattering
+Smith-Beckmann BRDF of a Gaussian surface, energy and reciprocity, the 1/sqrt(N) error
+law, anisotropic ridges, and the edge cases: grazing light, rays through vertices and
+edges, tile seams. Fixed seeds throughout; statistical checks use z-scores.
+"""
+
+import math
+
+import numpy as np
+import pytest
+from scipy.ndimage import gaussian_filter
+
+from render.appearance import gloss_units, predict_appearance
+from render.brdf_model import MicrofacetBRDF, bin_average, fit_microfacet, relative_error
+from render.fresnel import diffuse_fresnel_reflectance, fresnel_dielectric
+from render.gonio import (
+    _trace,
+    body_factor,
+    direction_from_angles,
+    estimate_brdf,
+    max_mipmap,
+    projected_solid_angle,
+)
+from render.microfacet import slope_roughness
+
+
+def facet_slopes(h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Slopes of both triangles of every periodic cell (unit pitch), as the tracer sees them."""
+    hr, hu = np.roll(h, -1, 1), np.roll(h, -1, 0)
+    hru = np.roll(hr, -1, 0)
+    gx = np.concatenate([(hr - h).ravel(), (hru - hu).ravel()])
+    gy = np.concatenate([(hru - hr).ravel(), (hu - h).ravel()])
+    return gx, gy
+
+
+def gaussian_surface(rms_slope: float, n: int = 1024, corr_px: float = 1.5, seed: int = 0) -> np.ndarray:
+    base = gaussian_filter(np.random.default_rng(seed).normal(size=(n, n)), corr_px, mode="wrap")
+    return base * rms_slope / np.std(facet_slopes(base)[0])
+
+
+# --- Fresnel ------------------------------------------------------------------------------
+
+
+def test_fresnel_closed_forms_and_total_internal_reflection():
+    assert fresnel_dielectric(1.0, 1.5) == pytest.approx(0.04, abs=1e-15)
+    assert fresnel_dielectric(0.0, 1.5) == pytest.approx(1.0)
+    # Brewster's angle: the parallel part vanishes, R = r_perp^2 / 2.
+    tb = math.atan(1.5)
+    ct = math.cos(math.asin(math.sin(tb) / 1.5))
+    r_perp = (math.cos(tb) - 1.5 * ct) / (math.cos(tb) + 1.5 * ct)
+    assert fresnel_dielectric(math.cos(tb), 1.5) == pytest.approx(0.5 * r_perp**2, rel=1e-12)
+    # From inside, beyond the critical angle asin(1/1.5) = 41.8 deg, everything reflects.
+    assert fresnel_dielectric(math.cos(math.radians(42.0)), 1 / 1.5) == 1.0
+    assert fresnel_dielectric(math.cos(math.radians(41.0)), 1 / 1.5) < 1.0
+    # Reciprocity of transmission: 1 - F_dr(1/n) = (1 - F_dr(n)) / n^2.
+    for n in (1.3, 1.5, 2.0):
+        assert 1 - diffuse_fresnel_reflectance(1 / n) == pytest.approx(
+            (1 - diffuse_fresnel_reflectance(n)) / n**2, rel=1e-6
+        )
+
+
+# --- Flat surface: closed forms -----------------------------------------------------------
+
+
+@pytest.mark.parametrize("theta_deg", [0.0, 30.0, 60.0, 85.0, 89.0])
+def test_flat_surface_reflects_exactly_fresnel_into_the_mirror_bin(theta_deg):
+    wi = direction_from_angles(math.radians(theta_deg), math.radians(10.0))
+    t = estimate_brdf(np.zeros((16, 16)), 0.05, 0.05, wi, rays=2000, n_theta=90, n_phi=180)
+    energy = t.f[0] * t.projected_solid_angle
+    expected = fresnel_dielectric(math.cos(math.radians(theta_deg)), 1.5)
+    assert energy.max() == pytest.approx(expected, rel=1e-12)  # all of it in one bin
+    assert t.albedo[0] == pytest.approx(expected, rel=1e-12)
+    peak = np.unravel_index(np.argmax(energy), energy.shape)
+    assert t.theta_o_edges[peak[0]] <= math.radians(theta_deg) <= t.theta_o_edges[peak[0] + 1] + 1e-12
+    assert t.lost[0] == 0.0
+
+
+def test_flat_surface_body_matches_the_closed_form_in_total_and_in_angle():
+    rho, n = 0.7, 1.5
+    wi = direction_from_angles(math.radians(35.0), 0.0)
+    t = estimate_brdf(np.zeros((8, 8)), 0.05, 0.05, wi, rays=200_000, body_albedo=rho, n_theta=18, n_phi=8)
+    r_i = fresnel_dielectric(wi[0, 2], n)
+    f_int = diffuse_fresnel_reflectance(1 / n)
+    expected = r_i + (1 - r_i) * rho * (1 - f_int) / (1 - rho * f_int)
+    assert abs(t.albedo[0] - expected) < 4 * t.albedo_stderr[0]
+    # The diffuse part, bin by bin: rho (1 - R_i)(1 - R_o) / (pi n^2 (1 - rho F_dr,int)).
+    model = MicrofacetBRDF("ggx", 1e-3, 1e-3, 0.0, rho, n)
+    diffuse_model = bin_average(model, wi, t.theta_o_edges, t.phi_o_edges, sub=8) - bin_average(
+        model, wi, t.theta_o_edges, t.phi_o_edges, sub=8, specular_only=True
+    )
+    diffuse = t.f[0] - t.f_specular[0]
+    z = (diffuse - diffuse_model[0]) / t.stderr[0]
+    assert np.mean(z**2) < 1.5  # chi-square per bin, 144 bins
+    assert body_factor(rho, n) == pytest.approx(rho / (n * n * (1 - rho * f_int)))
+
+
+# --- Gaussian surfaces: the Smith microfacet model ----------------------------------------
+
+
+def smith_comparison(rms_slope: float) -> tuple[float, float, MicrofacetBRDF]:
+    h = gaussian_surface(rms_slope)
+    r = slope_roughness(*facet_slopes(h))
+    model = MicrofacetBRDF("beckmann", r.alpha_major, r.alpha_minor, r.major_azimuth_rad, 0.0, 1.5)
+    wi = direction_from_angles(np.radians([0.0, 30.0, 60.0]), np.zeros(3))
+    t = estimate_brdf(h, 1.0, 1.0, wi, rays=300_000, n_theta=45, n_phi=90, seed=3)
+    fm = bin_average(model, wi, t.theta_o_edges, t.phi_o_edges, sub=4, specular_only=True)
+    omega = projected_solid_angle(t.theta_o_edges, t.phi_o_edges)
+    energy = t.f_specular * omega
+    mask = energy > 1e-3 * energy.sum(axis=(1, 2), keepdims=True)
+    chi2 = float(np.mean(((fm - t.f_specular)[mask] / t.stderr_specular[mask]) ** 2))
+    err, _ = relative_error(fm, t.f_specular, omega, t.stderr_specular)
+    return chi2, err, model
+
+
+def test_gaussian_surface_at_low_roughness_is_the_smith_beckmann_brdf():
+    chi2, err, model = smith_comparison(0.05)  # alpha ~ 0.07
+    assert 0.06 < model.alpha_u < 0.08
+    # Within the error bars, up to the finite surface's own slope sampling (about 1.3).
+    assert chi2 < 2.0
+    assert err < 0.05
+
+
+def test_smith_model_error_grows_with_roughness_as_multiple_scattering_grows():
+    # Documented limit: at alpha ~ 0.3 and 0.5 the single-scattering Smith model is off by
+    # about 8 % and 12 % (multiple bounces and the Smith approximation at grazing angles).
+    errors = [smith_comparison(s)[1] for s in (0.05, 0.2, 0.35)]
+    assert errors[0] < errors[1] < errors[2]
+    assert errors[2] < 0.2
+
+
+# --- Energy, reciprocity, convergence -----------------------------------------------------
+
+
+def test_white_furnace_a_perfect_reflector_loses_no_ray():
+    h = gaussian_surface(0.6, n=256, corr_px=2.0)  # steep: many bounces
+    wi = direction_from_angles(np.radians([0.0, 45.0, 80.0, 89.0]), np.radians([0.0, 30.0, 60.0, 90.0]))
+    t = estimate_brdf(h, 1.0, 1.0, wi, rays=20_000, perfect_reflector=True, n_theta=9, n_phi=12)
+    np.testing.assert_allclose(t.albedo, 1.0, rtol=1e-12)
+    assert np.all(t.lost == 0.0)
+    assert np.all(t.extra["segments"] / t.rays > 2.0)  # multiple bounces happened
+
+
+def test_white_body_conserves_energy_and_nothing_exceeds_one():
+    h = gaussian_surface(0.3, n=256, corr_px=2.0)
+    wi = direction_from_angles(np.radians([0.0, 60.0, 85.0]), np.zeros(3))
+    t = estimate_brdf(h, 1.0, 1.0, wi, rays=100_000, body_albedo=1.0, n_theta=9, n_phi=12)
+    assert np.all(np.abs(t.albedo - 1.0) < 4 * t.albedo_stderr + 1e-9)
+    t = estimate_brdf(h, 1.0, 1.0, wi, rays=20_000, body_albedo=0.5, n_theta=9, n_phi=12)
+    assert np.all(t.albedo < 1.0) and np.all(t.f >= 0.0)
+
+
+def test_reciprocity_f_wi_wo_equals_f_wo_wi():
+    h = gaussian_surface(0.2, n=512, corr_px=2.0, seed=5)
+    # Directions at bin centres (2 x 4 degree bins), so each lands in the other's bin.
+    a = (math.radians(31.0), math.radians(2.0))
+    b = (math.radians(51.0), math.radians(150.0))
+    wi = direction_from_angles(np.array([a[0], b[0]]), np.array([a[1], b[1]]))
+    t = estimate_brdf(h, 1.0, 1.0, wi, rays=1_000_000, body_albedo=0.5, n_theta=45, n_phi=90, seed=9)
+    ab = t.f[0, 25, 37], t.stderr[0, 25, 37]  # light from a, seen from b
+    ba = t.f[1, 15, 0], t.stderr[1, 15, 0]
+    assert abs(ab[0] - ba[0]) < 4 * math.hypot(ab[1], ba[1]) + 0.03 * ab[0]
+
+
+def test_error_falls_as_one_over_sqrt_rays():
+    h = gaussian_surface(0.1, n=256, corr_px=2.0)
+    wi = direction_from_angles(math.radians(30.0), 0.0)
+    small = estimate_brdf(h, 1.0, 1.0, wi, rays=40_000, body_albedo=0.5, n_theta=18, n_phi=36)
+    large = estimate_brdf(h, 1.0, 1.0, wi, rays=160_000, body_albedo=0.5, n_theta=18, n_phi=36)
+    assert small.albedo_stderr[0] / large.albedo_stderr[0] == pytest.approx(2.0, rel=0.1)
+    lobe = large.f_specular[0] * large.projected_solid_angle > 0.02 * 0.04
+    ratio = np.median(small.stderr_specular[0][lobe] / large.stderr_specular[0][lobe])
+    assert ratio == pytest.approx(2.0, rel=0.1)
+
+
+def test_same_seed_same_table_other_seed_other_table():
+    h = gaussian_surface(0.2, n=128, corr_px=2.0)
+    wi = direction_from_angles(np.radians([10.0, 50.0]), np.zeros(2))
+    a = estimate_brdf(h, 1.0, 1.0, wi, rays=20_000, body_albedo=0.5, seed=4)
+    b = estimate_brdf(h, 1.0, 1.0, wi, rays=20_000, body_albedo=0.5, seed=4)
+    c = estimate_brdf(h, 1.0, 1.0, wi, rays=20_000, body_albedo=0.5, seed=5)
+    for key in ("f", "stderr", "f_specular", "albedo"):
+        assert np.array_equal(a.arrays()[key], b.arrays()[key])
+    assert not np.array_equal(a.f, c.f)
+
+
+# --- Anisotropy: ridges and sinusoids -----------------------------------------------------
+
+
+def test_ridges_stretch_the_highlight_across_them_and_the_metrics_say_so():
+    n = 256
+    x = np.arange(n)
+    h = 0.15 * np.sin(2 * math.pi * x / 32.0)[None, :] * np.ones((n, 1))  # ridges along y, slopes along x
+    h = h + 0.01 * np.sin(2 * math.pi * np.arange(n) / 64.0)[:, None]
+    ap = predict_appearance(h, 0.05, 0.05, rays=50_000, body_albedo=0.5, periodic=True)
+    hl = ap.metrics["highlight"]
+    assert hl["anisotropy"] > 5.0
+    assert min(hl["azimuth_deg"], 180.0 - hl["azimuth_deg"]) < 5.0  # long axis along x
+    fit = ap.metrics["fit"]
+    assert fit["alpha_u"] > 3 * fit["alpha_v"]
+    assert min(fit["azimuth_deg"], 180.0 - fit["azimuth_deg"]) < 5.0
+    # A glossmeter across the ridges sees less gloss than along them.
+    assert ap.metrics["gloss_gu"]["60"] < ap.metrics["gloss_gu_plane_yz"]["60"]
+
+
+# --- Glossmeter and fit -------------------------------------------------------------------
+
+
+def test_polished_resin_reads_the_glossmeter_values_of_its_index():
+    ap = predict_appearance(np.zeros((32, 32)), 0.05, 0.05, rays=5_000, body_albedo=0.0, periodic=True)
+    for angle in ("20", "60", "85"):
+        cos_t = math.cos(math.radians(float(angle)))
+        expected = 100 * fresnel_dielectric(cos_t, 1.5) / fresnel_dielectric(cos_t, 1.567)
+        assert ap.metrics["gloss_gu"][angle] == pytest.approx(
+            float(expected), abs=6e-4
+        )  # rounded to 3 places
+    assert gloss_units(fresnel_dielectric(math.cos(math.radians(60)), 1.567), 60.0) == pytest.approx(100.0)
+    assert ap.metrics["haze"] == pytest.approx(ap.metrics["gloss_gu"]["60"] - ap.metrics["gloss_gu"]["20"])
+
+
+def test_fit_recovers_the_roughness_and_body_of_a_gaussian_surface():
+    h = gaussian_surface(0.08, n=1024, corr_px=1.5, seed=2)
+    r = slope_roughness(*facet_slopes(h))
+    wi = direction_from_angles(np.radians([0.0, 20.0, 40.0, 60.0]), np.zeros(4))
+    t = estimate_brdf(h, 1.0, 1.0, wi, rays=200_000, body_albedo=0.6, n_theta=45, n_phi=90)
+    fit = fit_microfacet(
+        wi,
+        t.f,
+        t.f_specular,
+        t.stderr_specular,
+        t.theta_o_edges,
+        t.phi_o_edges,
+        ior=1.5,
+        distribution="beckmann",
+        stderr=t.stderr,
+    )
+    assert fit.model.alpha_u == pytest.approx(r.alpha_major, rel=0.1)
+    assert fit.model.alpha_v == pytest.approx(r.alpha_minor, rel=0.1)
+    assert fit.model.body_albedo == pytest.approx(0.6, abs=0.02)
+    assert fit.relative_error < 0.06
+
+
+# --- Where it fails -----------------------------------------------------------------------
+
+
+def test_rays_through_vertices_and_along_edges_always_hit_the_right_height():
+    rng = np.random.default_rng(1)
+    h = rng.uniform(-0.5, 0.5, size=(12, 12))
+    mip, off, mnx, nl = max_mipmap(h)
+    zmax, zmin = h.max(), h.min()
+    # Vertical rays exactly through every vertex and every edge midpoint.
+    for r in range(12):
+        for c in range(12):
+            for dx, dy, expected in (
+                (0.0, 0.0, h[r, c]),
+                (0.5, 0.0, 0.5 * (h[r, c] + h[r, (c + 1) % 12])),
+                (0.0, 0.5, 0.5 * (h[r, c] + h[(r + 1) % 12, c])),
+                (0.5, 0.5, 0.5 * (h[r, c] + h[(r + 1) % 12, (c + 1) % 12])),  # on the diagonal
+            ):
+                res = _trace(
+                    h,
+                    1.0,
+                    1.0,
+                    mip,
+                    off,
+                    mnx,
+                    nl,
+                    zmax,
+                    zmin,
+                    c + dx,
+                    r + dy,
+                    zmax + 1.0,
+                    0.0,
+                    0.0,
+                    -1.0,
+                    0,
+                    0,
+                    -1,
+                )
+                assert res[0] == 1
+                assert zmax + 1.0 - res[1] == pytest.approx(expected, abs=1e-12)
+    # Oblique rays along grid lines and diagonals, between two equal ridges: never lost.
+    for d in ((1.0, 0.0, -1.0), (0.0, -1.0, -1.0), (1.0, 1.0, -1.0), (-1.0, 1.0, -0.2)):
+        v = np.array(d) / np.linalg.norm(d)
+        for start in range(12):
+            res = _trace(h, 1.0, 1.0, mip, off, mnx, nl, zmax, zmin, float(start), 3.0, zmax, *v, 0, 0, -1)
+            assert res[0] == 1
+
+
+def test_closed_box_relief_loses_no_ray_at_its_edges():
+    h = np.zeros((16, 16))
+    h[4:12, 4:12] = 3.0  # a block with vertical-ish walls one cell wide
+    wi = direction_from_angles(np.radians([0.0, 45.0, 45.0, 89.0]), np.radians([0.0, 0.0, 45.0, 90.0]))
+    t = estimate_brdf(h, 1.0, 1.0, wi, rays=50_000, perfect_reflector=True, n_theta=9, n_phi=8)
+    np.testing.assert_allclose(t.albedo, 1.0, rtol=1e-12)
+    assert np.all(t.lost == 0.0)
+
+
+def test_tile_seams_are_invisible_on_a_periodic_tile():
+    h = gaussian_surface(0.15, n=256, corr_px=2.0, seed=7)
+    wi = direction_from_angles(np.radians([30.0, 70.0]), np.radians([20.0, 200.0]))
+    a = estimate_brdf(h, 1.0, 1.0, wi, rays=200_000, n_theta=18, n_phi=24, seed=1)
+    b = estimate_brdf(
+        np.roll(h, (97, 41), axis=(0, 1)), 1.0, 1.0, wi, rays=200_000, n_theta=18, n_phi=24, seed=2
+    )
+    z = (a.f - b.f) / np.hypot(a.stderr, b.stderr).clip(1e-12)
+    busy = a.f * a.projected_solid_angle > 1e-3
+    assert np.mean(z[busy] ** 2) < 1.5
+
+
+def test_a_patch_cut_from_a_larger_relief_ignores_its_seam():
+    # A tilted plane cut out as a patch: the periodic seam is a cliff that is not part of it.
+    n = 128
+    slope = 0.1
+    h = slope * np.arange(n)[None, :] * np.ones((n, 1)) * 0.05
+    wi = direction_from_angles(np.radians([0.0, 60.0]), np.radians([0.0, 180.0]))
+    t = estimate_brdf(h, 0.05, 0.05, wi, rays=20_000, n_theta=90, n_phi=180, periodic=False)
+    normal = np.array([-slope, 0.0, 1.0]) / math.hypot(slope, 1.0)
+    for k in range(2):
+        cos_i = float(wi[k] @ normal)
+        energy = t.f_specular[k] * t.projected_solid_angle
+        assert energy.max() == pytest.approx(float(fresnel_dielectric(cos_i, 1.5)), rel=1e-9)

@@ -643,6 +643,153 @@ def slice_command(
     )
 
 
+class FitDistribution(StrEnum):
+    auto = "auto"
+    ggx = "ggx"
+    beckmann = "beckmann"
+
+
+@app.command()
+def brdf(
+    source: Annotated[
+        Path,
+        typer.Argument(
+            help="A design (.toml), a height map (.npy .png .tif .al3d .x3p .gwy) or a mesh tile."
+        ),
+    ],
+    out: Annotated[Path, typer.Option("--out", "-o", help="The table to write (.npz).")] = Path("brdf.npz"),
+    plot: Annotated[Path | None, typer.Option(help="Draw the table and the fit (.png).")] = None,
+    json_out: Annotated[
+        Path | None, typer.Option("--json", help="Write the appearance metrics (.json).")
+    ] = None,
+    ior: Annotated[
+        float | None, typer.Option(help="Refractive index of the resin [design's, else 1.5].")
+    ] = None,
+    body_albedo: Annotated[
+        float | None, typer.Option(help="Albedo of the pigmented body [design's luminance, else 0.8].")
+    ] = None,
+    incident_deg: Annotated[
+        str | None, typer.Option(help="Incident directions 'THETA:PHI,...' in degrees [a sweep of 7].")
+    ] = None,
+    rays: Annotated[
+        int, typer.Option(min=100, max=100_000_000, help="Primary rays per direction.")
+    ] = 200_000,
+    theta_bins: Annotated[int, typer.Option(min=4, max=360, help="Outgoing bins over 0-90 deg.")] = 45,
+    phi_bins: Annotated[int, typer.Option(min=4, max=720, help="Outgoing bins over 0-360 deg.")] = 90,
+    distribution: Annotated[FitDistribution, typer.Option(help="Fitted microfacet distribution.")] = (
+        FitDistribution.auto
+    ),
+    seed: Annotated[int, typer.Option(min=0, help="Seed of the rays.")] = 0,
+    periodic: Annotated[
+        bool, typer.Option(help="The map tiles seamlessly (else only its interior is lit).")
+    ] = False,
+    width_mm: Annotated[float | None, typer.Option(help="Images: physical width (mm).")] = None,
+    depth_mm: Annotated[
+        float | None, typer.Option(help="Images: relief depth, white minus black (mm).")
+    ] = None,
+    pitch_mm: Annotated[
+        float | None, typer.Option(help=".npy: sample spacing (mm); meshes: sampling pitch [median edge].")
+    ] = None,
+    flatten: Annotated[
+        str | None, typer.Option(help="Height maps: level first, 'plane' or 'poly:K'.")
+    ] = None,
+) -> None:
+    """Predict the BRDF of a printed surface by tracing rays through its microgeometry.
+
+    Writes the bin-averaged table (brdf.npz), and optionally a plot and the appearance
+    metrics: albedo, gloss at 20/60/85 deg (ISO 2813), haze, the highlight's
+    anisotropy, and the fitted compact microfacet model with its error.
+    """
+    import json
+
+    from printapp.brdf import (
+        MESH_SUFFIXES,
+        brdf_arrays,
+        grey_albedo,
+        heightfield_from_mesh,
+        npz_bytes,
+        parse_incident,
+        plot_brdf,
+    )
+    from printapp.exporters import atomic_write_bytes
+    from printapp.heightfield import HeightField
+    from render.appearance import DEFAULT_INCIDENT_DEG, predict_appearance
+
+    try:
+        if out.suffix.lower() != ".npz":
+            raise PrintappError(f"{out}: expected an output file ending in .npz")
+        if plot is not None and plot.suffix.lower() != ".png":
+            raise PrintappError(f"{plot}: expected a plot file ending in .png")
+        incident = parse_incident(incident_deg) or DEFAULT_INCIDENT_DEG
+        suffix = source.suffix.lower()
+        design_ior, design_albedo, origin = 1.5, 0.8, "height map"
+        if suffix == ".toml":
+            from printapp.design import load_design
+            from printapp.pipeline import appearance_field
+
+            design = load_design(source)
+            field, origin = appearance_field(design)
+            design_ior = design.material.refractive_index
+            design_albedo = grey_albedo(design.material.body_albedo)
+        elif suffix in MESH_SUFFIXES:
+            if not source.is_file():
+                raise PrintappError(f"{source}: no such file")
+            field, origin = heightfield_from_mesh(source, pitch_mm), "mesh tile's top surface"
+        else:
+            heights, px, py, _ = _load_corrected(source, width_mm, depth_mm, pitch_mm, False, flatten)
+            field = HeightField(heights, px, py)
+        n_ior = design_ior if ior is None else ior
+        rho = design_albedo if body_albedo is None else body_albedo
+        if not (1.0 <= n_ior <= 3.0):
+            raise PrintappError(f"--ior: expected a refractive index in [1, 3], got {n_ior:g}")
+        if not (0.0 <= rho <= 1.0):
+            raise PrintappError(f"--body-albedo: expected a value in [0, 1], got {rho:g}")
+        predicted = predict_appearance(
+            field.heights_mm,
+            field.pitch_x_mm,
+            field.pitch_y_mm,
+            ior=n_ior,
+            body_albedo=rho,
+            incident_deg=incident,
+            rays=rays,
+            n_theta=theta_bins,
+            n_phi=phi_bins,
+            seed=seed,
+            periodic=periodic,
+            distribution=distribution.value,
+        )
+        atomic_write_bytes(out, npz_bytes(brdf_arrays(predicted)))
+        metrics = {"source": str(source), "from": origin, "grid": list(field.shape), **predicted.metrics}
+        if json_out is not None:
+            atomic_write_bytes(json_out, (json.dumps(metrics, indent=2) + "\n").encode())
+        if plot is not None:
+            import tempfile
+
+            with tempfile.TemporaryDirectory(dir=plot.parent if plot.parent.exists() else None) as tmp:
+                staged = Path(tmp) / plot.name
+                plot_brdf(predicted, staged, source.name)
+                staged.replace(plot)
+    except PrintappError as exc:
+        raise _fail(exc) from None
+    m = predicted.metrics
+    fit, hl = m["fit"], m["highlight"]
+    spike = f", {fit['spike_weight']:.0%} of it in a mirror-sharp spike" if fit["spike_weight"] > 0 else ""
+    _out.print(
+        f"{source.name} ({origin}, {field.shape[1]} x {field.shape[0]} samples): albedo "
+        f"{m['albedo'][0]:.3f} at normal incidence; gloss {m['gloss_gu']['20']:.1f} / "
+        f"{m['gloss_gu']['60']:.1f} / {m['gloss_gu']['85']:.1f} GU at 20/60/85 deg, haze {m['haze']:.1f}; "
+        f"highlight anisotropy {hl['anisotropy']:.2f} along {hl['azimuth_deg']:.0f} deg"
+    )
+    _out.print(
+        f"fitted {fit['distribution']}: alpha {fit['alpha_u']:.3g} x {fit['alpha_v']:.3g} along "
+        f"{fit['azimuth_deg']:.0f} deg{spike}, body albedo {fit['body_albedo']:.3f}; relative error "
+        f"{fit['relative_error']:.1%} over {fit['bins']} bins"
+    )
+    for path in (out, plot, json_out):
+        if path is not None:
+            _out.print(f"  wrote {path}")
+
+
 @app.command()
 def bench(
     stages: Annotated[list[str] | None, typer.Argument(help="Stages to run [default: all].")] = None,

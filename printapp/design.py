@@ -82,7 +82,7 @@ class MeshBase(_Section):
 class Texture(_Section):
     """The texture field: which noise, at which scale, with which seed."""
 
-    kind: Literal["scn", "fbm", "turbulence", "lic"] = "fbm"
+    kind: Literal["scn", "fbm", "turbulence", "lic", "marble"] = "fbm"
     feature_size_mm: Annotated[float, at.Gt(0.0), at.Le(1000.0)] = 2.0
     """Size of one noise lattice cell (mm): the base octave's features are about this big."""
     seed: Annotated[int, at.Ge(0), at.Lt(2**63)] = 0
@@ -101,6 +101,20 @@ class Texture(_Section):
     """lic: the direction field, 'constant:ANGLE' (degrees), 'swirl' or 'image:FILE'."""
     length_mm: Annotated[float, at.Gt(0.0), at.Le(1000.0)] = 2.0
     """lic: half-length of the streamlines the noise is averaged along (mm)."""
+    vein_angle_rad: Annotated[float, at.Ge(-2 * math.pi), at.Le(2 * math.pi)] = 0.0
+    """marble: direction the veins run along, from +x towards +y."""
+    vein_period_mm: Annotated[float, at.Gt(0.0), at.Le(10000.0)] = 5.0
+    """marble: distance between veins across their direction (mm); 1 / vein frequency."""
+    turbulence_strength: Annotated[float, at.Ge(0.0), at.Le(1000.0)] = 5.0
+    """marble: radians of the sine's phase per unit of turbulence (low..high octaves)."""
+    vein_sharpness: Annotated[float, at.Ge(1.0), at.Le(1000.0)] = 1.0
+    """marble: exponent on the [0, 1] value; large values make thin veins."""
+    veins: Literal["raised", "sunk"] = "raised"
+    """marble: whether the veins (value 1) stand up from the relief or are cut into it."""
+    palette: tuple[str, ...] | None = Field(default=None, strict=False)
+    """Colours '#rrggbb' spaced evenly over palette_range, for colour previews; not the relief."""
+    palette_range: tuple[float, float] | None = Field(default=None, strict=False)
+    """Texture values given the first and last palette colour [default: 0..1 for marble, else min..max]."""
 
     @field_validator("field")
     @classmethod
@@ -108,6 +122,26 @@ class Texture(_Section):
         from printapp.fields import check_field_spec
 
         return check_field_spec(spec)
+
+    @field_validator("palette")
+    @classmethod
+    def _palette_colours(cls, palette: tuple[str, ...] | None) -> tuple[str, ...] | None:
+        if palette is None:
+            return None
+        if not 2 <= len(palette) <= 256:
+            raise ValueError(f"expected 2 to 256 colours, got {len(palette)}")
+        hex_digits = set("0123456789abcdefABCDEF")
+        for colour in palette:
+            if not (len(colour) == 7 and colour[0] == "#" and set(colour[1:]) <= hex_digits):
+                raise ValueError(f"expected colours written '#rrggbb', got {colour!r}")
+        return tuple(c.lower() for c in palette)
+
+    @field_validator("palette_range")
+    @classmethod
+    def _palette_range(cls, pair: tuple[float, float] | None) -> tuple[float, float] | None:
+        if pair is not None and pair[0] == pair[1]:
+            raise ValueError(f"expected two different values, got [{pair[0]:g}, {pair[1]:g}]")
+        return pair
 
     @model_validator(mode="after")
     def _octave_range(self) -> Texture:
@@ -168,6 +202,7 @@ class Material(_Section):
 
 
 RangeBound = Annotated[float, at.Ge(0.0), at.Le(1000.0)]
+GlossUnits = Annotated[float, at.Ge(0.0), at.Le(200.0)]
 
 
 def _check_range(name: str, pair: tuple[float, float] | None) -> None:
@@ -181,18 +216,38 @@ class Appearance(_Section):
     ``roughness`` is the Beckmann roughness of the relief's slopes (the root mean
     square slope times sqrt 2, geometric mean of the two principal directions);
     ``anisotropy`` is the ratio of the larger to the smaller principal roughness.
+    ``gloss_20``, ``gloss_60``, ``gloss_85`` and ``haze`` are read off the BRDF that
+    the gonioreflectometer traces through the (as-printed) relief, as a glossmeter
+    would (plane of incidence along x).
     """
 
     roughness: tuple[RangeBound, RangeBound] | None = Field(default=None, strict=False)
     anisotropy: tuple[Annotated[float, at.Ge(1.0)], Annotated[float, at.Ge(1.0)]] | None = Field(
         default=None, strict=False
     )
+    gloss_20: tuple[GlossUnits, GlossUnits] | None = Field(default=None, strict=False)
+    """Specular gloss at 20 degrees (gloss units, ISO 2813), predicted from the traced BRDF."""
+    gloss_60: tuple[GlossUnits, GlossUnits] | None = Field(default=None, strict=False)
+    gloss_85: tuple[GlossUnits, GlossUnits] | None = Field(default=None, strict=False)
+    haze: tuple[GlossUnits, GlossUnits] | None = Field(default=None, strict=False)
+    """Haze index G60 - G20 (ASTM D4039)."""
 
     @model_validator(mode="after")
     def _ordered(self) -> Appearance:
-        _check_range("roughness", self.roughness)
-        _check_range("anisotropy", self.anisotropy)
+        for name in ("roughness", "anisotropy", "gloss_20", "gloss_60", "gloss_85", "haze"):
+            _check_range(name, getattr(self, name))
         return self
+
+
+class Brdf(_Section):
+    """The virtual gonioreflectometer that predicts the printed surface's BRDF."""
+
+    rays: Annotated[int, at.Ge(1000), at.Le(100_000_000)] = 100_000
+    """Primary rays per incident direction; the error falls as 1/sqrt(rays)."""
+    distribution: Literal["auto", "ggx", "beckmann"] = "auto"
+    """Microfacet distribution of the fitted compact model ('auto': the better fit)."""
+    theta_bins: Annotated[int, at.Ge(4), at.Le(360)] = 45
+    phi_bins: Annotated[int, at.Ge(4), at.Le(720)] = 90
 
 
 class Render(_Section):
@@ -240,6 +295,7 @@ class Design(_Section):
     printer: Printer = Printer()
     material: Material = Material()
     appearance: Appearance = Appearance()
+    brdf: Brdf = Brdf()
     render: Render = Render()
     combine: list[Combine] = Field(default_factory=list, strict=False)
 
@@ -479,6 +535,35 @@ def design_from_dict(data: Any, source: str = "design") -> Design:
         raise DesignError(f"{source}: {exc}") from None
 
 
+def _include_texture(data: Any, path: Path) -> Any:
+    """Replace ``texture.from = "FILE"`` by FILE's [texture] table, overridden by the keys beside ``from``.
+
+    FILE (relative to the design's folder) is a design or a fragment such as
+    ``printapp fit`` writes; only its [texture] table is taken.
+    """
+    if not (isinstance(data, dict) and isinstance(data.get("texture"), dict) and "from" in data["texture"]):
+        return data
+    local = dict(data["texture"])
+    name = local.pop("from")
+    if not isinstance(name, str) or not name:
+        raise DesignError(f"{path}: texture.from: expected the name of a TOML file, got {_short(name)}")
+    source = Path(name) if Path(name).is_absolute() else path.parent / name
+    try:
+        fragment = tomllib.loads(source.read_bytes().decode("utf-8"))
+    except FileNotFoundError:
+        raise DesignError(f"{path}: texture.from: no such file {source}") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise DesignError(f"{path}: texture.from: cannot read {source} as UTF-8 text ({exc})") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise DesignError(f"{path}: texture.from: TOML syntax error in {source}: {exc}") from None
+    included = fragment.get("texture")
+    if not isinstance(included, dict):
+        raise DesignError(f"{path}: texture.from: expected a [texture] table in {source}")
+    if "from" in included:
+        raise DesignError(f"{path}: texture.from: {source} has its own texture.from; expected one level only")
+    return {**data, "texture": {**included, **local}}
+
+
 def load_design(path: str | Path) -> Design:
     """Read and validate a design file.
 
@@ -507,6 +592,7 @@ def load_design(path: str | Path) -> Design:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise DesignError(f"{path}: TOML syntax error: {exc}") from None
+    data = _include_texture(data, path)
     design = design_from_dict(data, str(path))
     kind, _, image = design.texture.field.partition(":")
     if kind == "image" and not Path(image).is_absolute():

@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 import trimesh
 
+from printapp.brdf import brdf_arrays, grey_albedo, npz_bytes
 from printapp.design import Design, MeshBase, TileBase, load_design, resolved_toml
 from printapp.exporters import OutputFolder, stl_bytes, threemf_bytes
 from printapp.fields import is_tile_field, surface_lic_values
@@ -160,6 +161,27 @@ def as_printed(design_field: HeightField, slices: Slices, base_thickness_mm: flo
     )
 
 
+def appearance_field(design: Design) -> tuple[HeightField, str]:
+    """The relief whose appearance a design predicts, and what it is.
+
+    For a tile, what the printer makes of it (sliced and read back); for a mesh or a
+    tile with booleans, a flat patch of the designed relief.
+    """
+    relief = build_relief(design)
+    if isinstance(design.base, TileBase) and not design.combine:
+        patch = relief.patch
+        slices = slice_heightfield(
+            patch.heights_mm,
+            patch.pitch_x_mm,
+            patch.pitch_y_mm,
+            design.base.thickness_mm,
+            design.printer.profile,
+            layer_height_mm=design.layer_height_mm,
+        )
+        return as_printed(patch, slices, design.base.thickness_mm).field, "as-printed relief"
+    return relief.patch, "designed relief"
+
+
 def fits_printer(design: Design, solid: SolidCheck) -> bool:
     """Whether the model fits the printer's display and height, in either orientation."""
     profile = design.printer.profile
@@ -169,7 +191,11 @@ def fits_printer(design: Design, solid: SolidCheck) -> bool:
 
 
 def verify(
-    design: Design, solid: SolidCheck, appearance: SlopeRoughness, image: np.ndarray | None
+    design: Design,
+    solid: SolidCheck,
+    appearance: SlopeRoughness,
+    image: np.ndarray | None,
+    brdf_metrics: dict[str, Any] | None = None,
 ) -> tuple[list[str], list[str]]:
     """Printability and appearance checks: (passed descriptions, failure reasons)."""
     passed: list[str] = []
@@ -209,10 +235,19 @@ def verify(
         f"({two_px:.3f} mm): the texture cannot be printed",
     )
     targets = design.appearance
-    for name, target, value, digits in (
+    measures: list[tuple[str, Any, float, int]] = [
         ("roughness", targets.roughness, appearance.roughness, 3),
         ("anisotropy", targets.anisotropy, appearance.anisotropy, 2),
-    ):
+    ]
+    if brdf_metrics is not None:
+        gloss = brdf_metrics["gloss_gu"]
+        measures += [
+            ("gloss_20", targets.gloss_20, gloss["20"], 1),
+            ("gloss_60", targets.gloss_60, gloss["60"], 1),
+            ("gloss_85", targets.gloss_85, gloss["85"], 1),
+            ("haze", targets.haze, brdf_metrics["haze"], 1),
+        ]
+    for name, target, value, digits in measures:
         if target is None:
             continue
         lo, hi = target
@@ -309,6 +344,22 @@ def run_design(
             # From what the printer will make where that is known, else from the design.
             sx, sy = (printed.field if printed is not None else relief.patch).slopes()
             appearance = slope_roughness(sx, sy)
+        with timer.stage("brdf", "predicted BRDF (ray traced) and compact model"):
+            from render.appearance import predict_appearance
+
+            brdf_field = printed.field if printed is not None else relief.patch
+            predicted = predict_appearance(
+                brdf_field.heights_mm,
+                brdf_field.pitch_x_mm,
+                brdf_field.pitch_y_mm,
+                ior=design.material.refractive_index,
+                body_albedo=grey_albedo(design.material.body_albedo),
+                rays=design.brdf.rays,
+                n_theta=design.brdf.theta_bins,
+                n_phi=design.brdf.phi_bins,
+                seed=design.texture.seed,
+                distribution=design.brdf.distribution,
+            )
         image = None
         choice = None
         if render:
@@ -328,7 +379,7 @@ def run_design(
                     azimuth_rad=r.azimuth_rad,
                 )
         with timer.stage("verify", "verification"):
-            passed, failed = verify(design, solid, appearance, image)
+            passed, failed = verify(design, solid, appearance, image, predicted.metrics)
             winding = slices.max_winding() if slices is not None else None
             if winding is not None:
                 # Winding 1 inside a solid; 2 where the surface passes through itself. The
@@ -353,6 +404,7 @@ def run_design(
                     out.path("preview.png"), optimize=False, compress_level=6
                 )
             out.write_text("design.resolved.toml", resolved_toml(design))
+            out.write_bytes("brdf.npz", npz_bytes(brdf_arrays(predicted)))
             if ok or force:
                 out.write_bytes("model.stl", stl_bytes(mesh.vertices, mesh.faces))
                 out.write_bytes("model.3mf", threemf_bytes(mesh.vertices, mesh.faces, design.name))
@@ -414,6 +466,12 @@ def run_design(
                 "alpha_minor": round(appearance.alpha_minor, 6),
                 "highlight_azimuth_deg": round(math.degrees(appearance.major_azimuth_rad), 3),
             },
+            "brdf": {
+                "method": "rays traced through the relief (Fresnel, all bounces, pigmented body); "
+                "compact anisotropic microfacet model fitted to the table",
+                "from": "as-printed relief" if printed is not None else "designed relief",
+                **predicted.metrics,
+            },
             "render": None
             if image is None or choice is None
             else {
@@ -431,7 +489,14 @@ def run_design(
         }
         staged = [
             n
-            for n in ("model.stl", "model.3mf", "slices.sl1", "preview.png", "design.resolved.toml")
+            for n in (
+                "model.stl",
+                "model.3mf",
+                "slices.sl1",
+                "preview.png",
+                "brdf.npz",
+                "design.resolved.toml",
+            )
             if out.path(n).exists()
         ]
         manifest["outputs"] = [*staged, "manifest.json"]

@@ -18,6 +18,12 @@ The body is the resin's pigment seen through the smooth interface (as in
 :mod:`render.gonio` and Mitsuba's ``plastic``):
 
     f_b = rho (1 - F(theta_i)) (1 - F(theta_o)) / (pi n^2 (1 - rho F_dr,int)).
+
+Printed reliefs are often two-scale: the flat tops of the printer's layers are
+mirrors, the steps between them scatter broadly. So the model may carry a second,
+isotropic and sharp lobe (``spike_weight`` of the surface reflection, roughness
+``spike_alpha``): ``f_s = (1 - w) f_s(alpha_u, alpha_v) + w f_s(spike_alpha)``. The fit
+adds it only where it explains the table markedly better.
 """
 
 from __future__ import annotations
@@ -49,6 +55,9 @@ class MicrofacetBRDF:
         Albedo of the diffuse body under the interface.
     ior : float
         Refractive index of the resin.
+    spike_weight, spike_alpha : float
+        Share of the surface reflection in a second, sharp isotropic lobe, and its
+        roughness (0 when there is none).
     """
 
     distribution: str
@@ -57,6 +66,8 @@ class MicrofacetBRDF:
     azimuth_rad: float
     body_albedo: float
     ior: float
+    spike_weight: float = 0.0
+    spike_alpha: float = 0.0
 
     def as_dict(self) -> dict[str, float | str]:
         d = asdict(self)
@@ -89,6 +100,34 @@ def _smith_lambda(distribution: str, wx, wy, wz, au: float, av: float) -> np.nda
     return np.where(a > 26.0, 0.0, lam)
 
 
+def _lobe(distribution: str, au: float, av: float, azimuth: float, ior: float, wi, wo) -> np.ndarray:
+    """One microfacet lobe's BRDF (1/sr), zero outside the upper hemisphere."""
+    cos_i = wi[..., 2]
+    cos_o = wo[..., 2]
+    hv = wi + wo
+    hv = hv / np.maximum(np.linalg.norm(hv, axis=-1, keepdims=True), 1e-300)
+    hx, hy, hz = _to_local(hv, azimuth)
+    ix, iy, iz = _to_local(wi, azimuth)
+    ox, oy, oz = _to_local(wo, azimuth)
+    d = _ndf(distribution, hx, hy, hz, au, av)
+    g2 = 1.0 / (
+        1.0
+        + _smith_lambda(distribution, ix, iy, iz, au, av)
+        + _smith_lambda(distribution, ox, oy, oz, au, av)
+    )
+    f_h = fresnel_dielectric(np.sum(wi * hv, axis=-1), ior)
+    valid = (cos_i > 0.0) & (cos_o > 0.0) & (hz > 0.0)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        return np.where(valid, f_h * d * g2 / (4.0 * cos_i * cos_o), 0.0)
+
+
+def _body(model: MicrofacetBRDF, cos_i, cos_o) -> np.ndarray:
+    rho, n = model.body_albedo, model.ior
+    factor = rho / (math.pi * n * n * (1.0 - rho * diffuse_fresnel_reflectance(1.0 / n)))
+    value = factor * (1.0 - fresnel_dielectric(cos_i, n)) * (1.0 - fresnel_dielectric(cos_o, n))
+    return np.where((cos_i > 0.0) & (cos_o > 0.0), value, 0.0)
+
+
 def evaluate(
     model: MicrofacetBRDF, wi: np.ndarray, wo: np.ndarray, *, specular_only: bool = False
 ) -> np.ndarray:
@@ -99,35 +138,15 @@ def evaluate(
         )
     wi = np.asarray(wi, dtype=np.float64)
     wo = np.asarray(wo, dtype=np.float64)
-    cos_i = wi[..., 2]
-    cos_o = wo[..., 2]
-    hv = wi + wo
-    hv = hv / np.maximum(np.linalg.norm(hv, axis=-1, keepdims=True), 1e-300)
-    au, av = model.alpha_u, model.alpha_v
-    hx, hy, hz = _to_local(hv, model.azimuth_rad)
-    ix, iy, iz = _to_local(wi, model.azimuth_rad)
-    ox, oy, oz = _to_local(wo, model.azimuth_rad)
-    d = _ndf(model.distribution, hx, hy, hz, au, av)
-    g2 = 1.0 / (
-        1.0
-        + _smith_lambda(model.distribution, ix, iy, iz, au, av)
-        + _smith_lambda(model.distribution, ox, oy, oz, au, av)
+    w = model.spike_weight
+    f = (1.0 - w) * _lobe(
+        model.distribution, model.alpha_u, model.alpha_v, model.azimuth_rad, model.ior, wi, wo
     )
-    f_h = fresnel_dielectric(np.sum(wi * hv, axis=-1), model.ior)
-    valid = (cos_i > 0.0) & (cos_o > 0.0) & (hz > 0.0)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        spec = np.where(valid, f_h * d * g2 / (4.0 * cos_i * cos_o), 0.0)
+    if w > 0.0:
+        f = f + w * _lobe(model.distribution, model.spike_alpha, model.spike_alpha, 0.0, model.ior, wi, wo)
     if specular_only or model.body_albedo <= 0.0:
-        return spec
-    rho = model.body_albedo
-    n = model.ior
-    body = (
-        rho
-        * (1.0 - fresnel_dielectric(cos_i, n))
-        * (1.0 - fresnel_dielectric(cos_o, n))
-        / (math.pi * n * n * (1.0 - rho * diffuse_fresnel_reflectance(1.0 / n)))
-    )
-    return spec + np.where(valid, body, 0.0)
+        return f
+    return f + _body(model, wi[..., 2], wo[..., 2])
 
 
 def bin_directions(theta_edges: np.ndarray, phi_edges: np.ndarray, sub: int = 4) -> np.ndarray:
@@ -187,26 +206,26 @@ def _standard_slopes(distribution: str, n_side: int) -> tuple[np.ndarray, np.nda
     return r * np.cos(phi), r * np.sin(phi)
 
 
-def sampled_bin_average(
-    model: MicrofacetBRDF, wi: np.ndarray, theta_edges: np.ndarray, phi_edges: np.ndarray, n_side: int = 512
+def _lobe_sampled(
+    distribution: str,
+    au: float,
+    av: float,
+    azimuth: float,
+    ior: float,
+    wis: np.ndarray,
+    theta_edges: np.ndarray,
+    phi_edges: np.ndarray,
+    n_side: int,
 ) -> np.ndarray:
-    """Bin averages of the model by importance sampling its lobe: right for lobes of any width.
-
-    Facet slopes are drawn (stratified) from the model's slope distribution, so facet
-    normals m have density ``D(m) cos(theta_m)``; reflecting ``wi`` off m gives the
-    estimator ``F G2 (wi . m) / (cos(theta_i) cos(theta_m))`` of ``integral_bin f_s
-    cos(theta_o) d omega_o`` (Walter et al. 2007, eq. 38-41). The body term is smooth
-    and is taken at the bin centres. Returns ``(n_in, n_theta, n_phi)`` (1/sr).
-    """
+    """One lobe's bin averages by importance sampling it (see :func:`sampled_bin_average`)."""
     from render.gonio import projected_solid_angle
 
-    sx0, sy0 = _standard_slopes(model.distribution, n_side)
-    c, s = math.cos(model.azimuth_rad), math.sin(model.azimuth_rad)
-    su, sv = model.alpha_u * sx0, model.alpha_v * sy0
+    sx0, sy0 = _standard_slopes(distribution, n_side)
+    c, s = math.cos(azimuth), math.sin(azimuth)
+    su, sv = au * sx0, av * sy0
     sx, sy = su * c - sv * s, su * s + sv * c
     inv = 1.0 / np.sqrt(1.0 + sx * sx + sy * sy)
     m = np.stack([-sx * inv, -sy * inv, inv], axis=-1)
-    wis = np.atleast_2d(wi)
     n_t, n_p = len(theta_edges) - 1, len(phi_edges) - 1
     omega = projected_solid_angle(theta_edges, phi_edges)
     out = np.zeros((wis.shape[0], n_t, n_p))
@@ -215,19 +234,41 @@ def sampled_bin_average(
         o = 2.0 * wm[:, None] * m - w[None, :]
         ok = (wm > 0.0) & (o[:, 2] > 0.0)
         o, wm_ok, mz = o[ok], wm[ok], m[ok, 2]
-        ix, iy, iz = _to_local(w[None, :], model.azimuth_rad)
-        ox, oy, oz = _to_local(o, model.azimuth_rad)
+        ix, iy, iz = _to_local(w[None, :], azimuth)
+        ox, oy, oz = _to_local(o, azimuth)
         g2 = 1.0 / (
             1.0
-            + _smith_lambda(model.distribution, ix, iy, iz, model.alpha_u, model.alpha_v)
-            + _smith_lambda(model.distribution, ox, oy, oz, model.alpha_u, model.alpha_v)
+            + _smith_lambda(distribution, ix, iy, iz, au, av)
+            + _smith_lambda(distribution, ox, oy, oz, au, av)
         )
-        weight = fresnel_dielectric(wm_ok, model.ior) * g2 * wm_ok / (w[2] * mz) / sx0.size
+        weight = fresnel_dielectric(wm_ok, ior) * g2 * wm_ok / (w[2] * mz) / sx0.size
         theta = np.arccos(np.clip(o[:, 2], -1.0, 1.0))
         phi = np.arctan2(o[:, 1], o[:, 0]) % (2.0 * math.pi)
         it = np.minimum((theta / (theta_edges[-1] - theta_edges[0]) * n_t).astype(np.int64), n_t - 1)
         ip = np.minimum((phi / (2.0 * math.pi) * n_p).astype(np.int64), n_p - 1)
         out[k] = np.bincount(it * n_p + ip, weights=weight, minlength=n_t * n_p).reshape(n_t, n_p) / omega
+    return out
+
+
+def sampled_bin_average(
+    model: MicrofacetBRDF, wi: np.ndarray, theta_edges: np.ndarray, phi_edges: np.ndarray, n_side: int = 512
+) -> np.ndarray:
+    """Bin averages of the model by importance sampling its lobes: right for lobes of any width.
+
+    Facet slopes are drawn (stratified) from each lobe's slope distribution, so facet
+    normals m have density ``D(m) cos(theta_m)``; reflecting ``wi`` off m gives the
+    estimator ``F G2 (wi . m) / (cos(theta_i) cos(theta_m))`` of ``integral_bin f_s
+    cos(theta_o) d omega_o`` (Walter et al. 2007, eqs. 38-41). The body term is smooth
+    and is taken at the bin centres. Returns ``(n_in, n_theta, n_phi)`` (1/sr).
+    """
+    wis = np.atleast_2d(wi)
+    w = model.spike_weight
+    args = (model.ior, wis, theta_edges, phi_edges, n_side)
+    out = (1.0 - w) * _lobe_sampled(
+        model.distribution, model.alpha_u, model.alpha_v, model.azimuth_rad, *args
+    )
+    if w > 0.0:
+        out += w * _lobe_sampled(model.distribution, model.spike_alpha, model.spike_alpha, 0.0, *args)
     if model.body_albedo > 0.0:
         rho = model.body_albedo
         f_int = diffuse_fresnel_reflectance(1.0 / model.ior)
@@ -360,6 +401,46 @@ def lobe_alpha(
     return math.sqrt(values[1] / 2.0), math.sqrt(values[0] / 2.0), azimuth
 
 
+def model_bins(
+    model: MicrofacetBRDF, wi: np.ndarray, theta_edges: np.ndarray, phi_edges: np.ndarray
+) -> np.ndarray:
+    """The model's bin averages, accurate for lobes of any width.
+
+    Lobes wider than half a bin are averaged over sub-samples of every bin (exact
+    up to the midpoint rule); narrower ones are importance sampled.
+    """
+    wis = np.atleast_2d(wi)
+    width = float(theta_edges[1] - theta_edges[0])
+    lobes = [(1.0 - model.spike_weight, model.alpha_u, model.alpha_v, model.azimuth_rad)]
+    if model.spike_weight > 0.0:
+        lobes.append((model.spike_weight, model.spike_alpha, model.spike_alpha, 0.0))
+    out = np.zeros((wis.shape[0], len(theta_edges) - 1, len(phi_edges) - 1))
+    for weight, au, av, az in lobes:
+        one = MicrofacetBRDF(model.distribution, au, av, az, 0.0, model.ior)
+        if min(au, av) >= 0.5 * width:
+            sub = int(min(max(math.ceil(2.5 * width / min(au, av)), 2), 5))
+            out += weight * bin_average(one, wis, theta_edges, phi_edges, sub=sub, specular_only=True)
+        else:
+            out += weight * sampled_bin_average(one, wis, theta_edges, phi_edges)
+    if model.body_albedo > 0.0:
+        rho = model.body_albedo
+        f_int = diffuse_fresnel_reflectance(1.0 / model.ior)
+        out += rho / (1.0 - rho * f_int) * _body_shape(wis, theta_edges, phi_edges, model.ior)
+    return out
+
+
+def _grow(mask: np.ndarray) -> np.ndarray:
+    """One bin of margin around an (n_in, n_theta, n_phi) mask; the whole polar cap where it reaches it."""
+    grown = mask.copy()
+    grown[:, 1:, :] |= mask[:, :-1, :]
+    grown[:, :-1, :] |= mask[:, 1:, :]
+    grown |= np.roll(grown, 1, axis=2) | np.roll(grown, -1, axis=2)
+    # Bins around the pole are thin wedges: a lobe there spreads over the whole ring.
+    at_pole = grown[:, 0, :].any(axis=1)
+    grown[at_pole, :2, :] = True
+    return grown
+
+
 def fit_microfacet(
     wi: np.ndarray,
     f_table: np.ndarray,
@@ -371,8 +452,9 @@ def fit_microfacet(
     ior: float,
     distribution: str = "ggx",
     stderr: np.ndarray | None = None,
+    allow_spike: bool = True,
 ) -> FitResult:
-    """Fit the compact model to a tabulated BRDF: ``alpha_u, alpha_v, azimuth, body_albedo``.
+    """Fit the compact model to a tabulated BRDF: ``alpha_u, alpha_v, azimuth, body_albedo`` (and a spike).
 
     The table separates the light that only ever reflected off the surface
     (``f_specular``) from the light that went through the body, so the two parts are
@@ -383,12 +465,15 @@ def fit_microfacet(
     2. the microfacet lobe by least squares (SciPy's trust-region reflective), with
        residuals in units of the table's standard error (plus 2 % for what a
        four-parameter model cannot follow), over the bins holding the lobe, started
-       from the lobe's moments (:func:`lobe_alpha`). Narrow lobes are integrated over
-       their bins with up to 8 x 8 sub-samples, so a lobe narrower than a bin is fitted
-       as the bin average it is.
+       from the lobe's moments (:func:`lobe_alpha`). Lobes are integrated over their
+       bins with up to 8 x 8 sub-samples; a lobe narrower than half a bin cannot be
+       measured by the table, and keeps its moment estimate (an upper bound);
+    3. with ``allow_spike``, the same with a second, sharp lobe (the mirror-flat part
+       of a terraced print, its width below the bins' resolution) and its weight; it is
+       kept when it lowers the relative error by a quarter or more.
 
-    ``distribution="auto"`` fits both and keeps the one with the smaller error. The
-    index is not fitted: it is the resin's.
+    ``distribution="auto"`` fits both distributions and keeps the one with the smaller
+    error. The index is not fitted: it is the resin's.
     """
     from scipy.optimize import least_squares
 
@@ -406,6 +491,7 @@ def fit_microfacet(
                 ior=ior,
                 distribution=d,
                 stderr=stderr,
+                allow_spike=allow_spike,
             )
             for d in DISTRIBUTIONS
         ]
@@ -416,6 +502,8 @@ def fit_microfacet(
         )
     wis = np.atleast_2d(wi)
     omega = projected_solid_angle(theta_edges, phi_edges)
+    width = float(theta_edges[1] - theta_edges[0])
+    spike_alpha = 0.002  # well below any table's bins: what the table cannot resolve
 
     # 1. The body, in closed form.
     shape = _body_shape(wis, theta_edges, phi_edges, ior)
@@ -424,70 +512,109 @@ def fit_microfacet(
     f_int = diffuse_fresnel_reflectance(1.0 / ior)
     rho = min(max(k / (1.0 + k * f_int), 0.0), 1.0) if k > 0 else 0.0
 
-    # 2. The lobe.
-    def model_of(p: np.ndarray, rho_: float = 0.0) -> MicrofacetBRDF:
-        return MicrofacetBRDF(
-            distribution,
-            float(math.exp(p[0])),
-            float(math.exp(p[1])),
-            float(p[2] % math.pi),
-            rho_,
-            float(ior),
-        )
-
-    k0 = int(np.argmin(1.0 - wis[:, 2]))
-    au0, av0, az0 = lobe_alpha(f_specular[k0], theta_edges, phi_edges)
+    # 2. The lobe, over the bins that hold it.
+    normal = int(np.argmin(1.0 - wis[:, 2]))
     energy = f_specular * omega
     total = energy.sum(axis=(-2, -1), keepdims=True)
-    lobe = energy > 1e-3 * np.maximum(total, 1e-300)
-    # One bin of margin around the lobe, so that a model too broad is penalised.
-    grown = lobe.copy()
-    grown[:, 1:, :] |= lobe[:, :-1, :]
-    grown[:, :-1, :] |= lobe[:, 1:, :]
-    grown |= np.roll(grown, 1, axis=2) | np.roll(grown, -1, axis=2)
-    # Bins around the pole are thin wedges: a lobe there spreads over the whole ring.
-    at_pole = grown[:, 0, :].any(axis=1)
-    grown[at_pole, :2, :] = True
+    grown = _grow(energy > 1e-3 * np.maximum(total, 1e-300))
     kk, it, ip = np.nonzero(grown)
-    width = float(theta_edges[1] - theta_edges[0])
-    resolved = min(au0, av0) > 0.5 * width
-    if resolved:
-        sub = int(min(max(math.ceil(2.5 * width / min(au0, av0)), 2), 8))
-        dirs = _sub_directions(theta_edges, phi_edges, it, ip, sub)
-        wi_rows = wis[kk][:, None, :]
-        target = f_specular[kk, it, ip]
-        sigma = np.sqrt(stderr_specular[kk, it, ip] ** 2 + (0.02 * target) ** 2)
-        sigma = np.maximum(sigma, 1e-3 * max(float(target.max()), 1e-300))
+    target = f_specular[kk, it, ip]
+    sigma = np.sqrt(stderr_specular[kk, it, ip] ** 2 + (0.02 * target) ** 2)
+    sigma = np.maximum(sigma, 1e-3 * max(float(target.max()), 1e-300))
+    wi_rows = wis[kk][:, None, :]
+    lo = [math.log(1e-3), math.log(1e-3), -math.pi, 0.0]
+    hi = [math.log(3.0), math.log(3.0), 2 * math.pi, 1.0]
 
-        def residuals(p: np.ndarray) -> np.ndarray:
-            fm = evaluate(model_of(p), wi_rows, dirs, specular_only=True).mean(axis=-1)
-            return (fm - target) / sigma
+    def build(p: np.ndarray, spike: bool) -> MicrofacetBRDF:
+        au, av, az = float(math.exp(p[0])), float(math.exp(p[1])), float(p[2] % math.pi)
+        if av > au:
+            # alpha_u is the larger one, so that the azimuth names the highlight's long axis.
+            au, av, az = av, au, (az + math.pi / 2) % math.pi
+        w = float(p[3]) if spike else 0.0
+        return MicrofacetBRDF(distribution, au, av, az, rho, float(ior), w, spike_alpha if spike else 0.0)
 
-        lo = [math.log(1e-3), math.log(1e-3), -math.pi]
-        hi = [math.log(3.0), math.log(3.0), 2 * math.pi]
-        p0 = np.clip([math.log(au0), math.log(av0), az0], np.array(lo) + 1e-9, np.array(hi) - 1e-9)
-        sol = least_squares(residuals, p0, bounds=(lo, hi), x_scale=[0.3, 0.3, 0.3], max_nfev=100)
-        model = model_of(sol.x, rho)
-    else:
-        # A lobe narrower than the bins: its width cannot be fitted from this table, so
-        # the moment estimate (an upper bound) stands.
-        model = model_of(np.array([math.log(au0), math.log(av0), az0]), rho)
-    if model.alpha_v > model.alpha_u:
-        # alpha_u is the larger one, so that the azimuth names the highlight's long axis.
-        model = MicrofacetBRDF(
-            distribution,
-            model.alpha_v,
-            model.alpha_u,
-            (model.azimuth_rad + math.pi / 2) % math.pi,
-            rho,
-            float(ior),
+    # The bins around each mirror direction, where a mirror-flat part of the relief
+    # reflects: the spike's energy is compared there as one pooled bin, so that it does
+    # not matter on which side of a bin edge a mirror direction falls.
+    mirror = np.zeros_like(grown)
+    m_theta = np.arccos(np.clip(wis[:, 2], -1.0, 1.0))
+    m_phi = (np.arctan2(wis[:, 1], wis[:, 0]) + math.pi) % (2 * math.pi)
+    n_t, n_p = f_table.shape[1], f_table.shape[2]
+    mirror[
+        np.arange(len(wis)),
+        np.minimum((m_theta / width).astype(int), n_t - 1),
+        np.minimum((m_phi / (2 * math.pi) * n_p).astype(int), n_p - 1),
+    ] = True
+    mirror = _grow(mirror)
+    pooled_table = (f_specular * omega * mirror).sum(axis=(1, 2))
+    pooled_sigma = np.sqrt(
+        ((stderr_specular * omega) ** 2 * mirror).sum(axis=(1, 2)) + (0.02 * pooled_table) ** 2
+    )
+    pooled_sigma = np.maximum(pooled_sigma, 1e-6)
+    in_mirror = mirror[kk, it, ip]
+    spike_albedo = fresnel_dielectric(wis[:, 2], ior)  # a flat mirror reflects F(theta_i), all of it there
+
+    def fit_lobes(initial: tuple[float, float, float], spike: bool) -> FitResult:
+        au0, av0, az0 = initial
+        p0 = np.clip(
+            [math.log(au0), math.log(av0), az0, 0.3 if spike else 0.0],
+            np.array(lo) + 1e-9,
+            np.array(hi) - 1e-9,
         )
-    if resolved:
-        f_model = bin_average(model, wis, theta_edges, phi_edges, sub=2)
-        f_model[kk, it, ip] = evaluate(model, wis[kk][:, None, :], dirs).mean(axis=-1)
-        err, used = relative_error(f_model, f_table, omega, stderr)
-    else:
-        # Compare the lobe as one bin: its shape is below the table's resolution.
-        f_model = sampled_bin_average(model, wis, theta_edges, phi_edges)
+        if min(au0, av0) > 0.5 * width:
+            sub = int(min(max(math.ceil(2.5 * width / min(au0, av0)), 2), 8))
+            dirs = _sub_directions(theta_edges, phi_edges, it, ip, sub)
+            bin_omega = omega[it, ip]
+
+            def residuals(p: np.ndarray) -> np.ndarray:
+                broad = _lobe(distribution, math.exp(p[0]), math.exp(p[1]), p[2], ior, wi_rows, dirs).mean(
+                    axis=-1
+                )
+                if not spike:
+                    return (broad - target) / sigma
+                w = p[3]
+                per_bin = ((1.0 - w) * broad - target)[~in_mirror] / sigma[~in_mirror]
+                pooled = (1.0 - w) * np.bincount(
+                    kk[in_mirror], weights=(broad * bin_omega)[in_mirror], minlength=len(wis)
+                ) + w * spike_albedo
+                return np.concatenate([per_bin, (pooled - pooled_table) / pooled_sigma])
+
+            n = 4 if spike else 3
+            sol = least_squares(
+                lambda q: residuals(np.concatenate([q, p0[n:]])),
+                p0[:n],
+                bounds=(lo[:n], hi[:n]),
+                x_scale=[0.3, 0.3, 0.3, 0.1][:n],
+                max_nfev=100,
+            )
+            model = build(np.concatenate([sol.x, p0[n:]]), spike)
+            f_model = model_bins(model, wis, theta_edges, phi_edges)
+            if not spike:
+                # The lobe's own bins from the sub-samples the fit used (the numbers it minimised).
+                broad = _lobe(
+                    distribution, model.alpha_u, model.alpha_v, model.azimuth_rad, ior, wi_rows, dirs
+                )
+                centre_cos = np.cos(0.5 * (theta_edges[it] + theta_edges[it + 1]))
+                f_model[kk, it, ip] = broad.mean(axis=-1) + _body(model, wis[kk, 2], centre_cos)
+            err, used = relative_error(f_model, f_table, omega, stderr)
+            pooled_err, _ = _relative_error_merged(f_model, f_table, omega, stderr, mirror)
+            return FitResult(model, pooled_err if spike else err, used), pooled_err
+        # A lobe narrower than half a bin cannot be measured by the table: the moment
+        # estimate (an upper bound) stands, and the lobe is compared as one pooled bin.
+        model = build(p0, False)
+        f_model = model_bins(model, wis, theta_edges, phi_edges)
         err, used = _relative_error_merged(f_model, f_table, omega, stderr, grown)
-    return FitResult(model, err, used)
+        return FitResult(model, err, used), err
+
+    single, single_pooled = fit_lobes(lobe_alpha(f_specular[normal], theta_edges, phi_edges), spike=False)
+    if not allow_spike:
+        return single
+    # The broad lobe's moments without the mirror bins.
+    broad_only = f_specular[normal].copy()
+    broad_only[mirror[normal]] = 0.0
+    au0, av0, az0 = lobe_alpha(broad_only, theta_edges, phi_edges)
+    two, two_pooled = fit_lobes((max(au0, width), max(av0, width), az0), spike=True)
+    # Both judged with the mirror bins pooled, where the spike is all that differs.
+    if two.model.spike_weight > 0.005 and two_pooled < 0.75 * single_pooled:
+        return two
+    return single

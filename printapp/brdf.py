@@ -1,0 +1,206 @@
+"""``printapp brdf``: the predicted BRDF of a design, a height map or a mesh tile, and its files.
+
+The numerics are :mod:`render.gonio` (the tracer), :mod:`render.brdf_model` (the compact
+model) and :mod:`render.appearance` (gloss, haze, highlight); this module reads the
+inputs, writes ``brdf.npz`` byte for byte the same for the same input and seed, and
+draws the plot.
+"""
+
+from __future__ import annotations
+
+import io
+import math
+import zipfile
+from pathlib import Path
+
+import numpy as np
+from numba import njit
+
+from printapp.errors import PrintappError
+from printapp.heightfield import HeightField
+
+MESH_SUFFIXES = (".stl", ".ply", ".obj", ".off", ".3mf")
+REC709_LUMA = (0.2126, 0.7152, 0.0722)
+
+
+def grey_albedo(rgb: tuple[float, float, float]) -> float:
+    """The body albedo the (grey) gonioreflectometer uses: the Rec. 709 luminance of the RGB albedo."""
+    return float(sum(w * c for w, c in zip(REC709_LUMA, rgb, strict=True)))
+
+
+def npz_bytes(arrays: dict[str, np.ndarray]) -> bytes:
+    """An ``.npz`` archive (readable by ``numpy.load``) with fixed timestamps: byte-identical runs."""
+    buffer = io.BytesIO()
+    with zipfile.ZipFile(buffer, "w", compression=zipfile.ZIP_DEFLATED) as archive:
+        for name in sorted(arrays):
+            member = io.BytesIO()
+            np.lib.format.write_array(member, np.asanyarray(arrays[name]), allow_pickle=False)
+            info = zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0))
+            info.compress_type = zipfile.ZIP_DEFLATED
+            archive.writestr(info, member.getvalue())
+    return buffer.getvalue()
+
+
+def brdf_arrays(appearance) -> dict[str, np.ndarray]:
+    """The arrays of ``brdf.npz``: the table (see :class:`render.gonio.BrdfTable`) and the fitted model."""
+    arrays = appearance.table.arrays()
+    fit = appearance.fit.model
+    arrays["fit_distribution"] = np.array(fit.distribution)
+    arrays["fit_params"] = np.array([fit.alpha_u, fit.alpha_v, fit.azimuth_rad, fit.body_albedo])
+    arrays["fit_relative_error"] = np.float64(appearance.fit.relative_error)
+    return arrays
+
+
+@njit(cache=True)
+def _top_surface(vertices, faces, x0, y0, pitch, heights):
+    ny, nx = heights.shape
+    for f in range(faces.shape[0]):
+        ax, ay, az = vertices[faces[f, 0], 0], vertices[faces[f, 0], 1], vertices[faces[f, 0], 2]
+        bx, by, bz = vertices[faces[f, 1], 0], vertices[faces[f, 1], 1], vertices[faces[f, 1], 2]
+        cx, cy, cz = vertices[faces[f, 2], 0], vertices[faces[f, 2], 1], vertices[faces[f, 2], 2]
+        area = (bx - ax) * (cy - ay) - (cx - ax) * (by - ay)
+        if area <= 0.0:
+            continue  # facing down or vertical: never the top surface
+        c0 = max(int(math.ceil((min(ax, bx, cx) - x0) / pitch)), 0)
+        c1 = min(int(math.floor((max(ax, bx, cx) - x0) / pitch)), nx - 1)
+        r0 = max(int(math.ceil((min(ay, by, cy) - y0) / pitch)), 0)
+        r1 = min(int(math.floor((max(ay, by, cy) - y0) / pitch)), ny - 1)
+        for r in range(r0, r1 + 1):
+            py = y0 + r * pitch
+            for c in range(c0, c1 + 1):
+                px = x0 + c * pitch
+                w0 = ((bx - px) * (cy - py) - (cx - px) * (by - py)) / area
+                w1 = ((cx - px) * (ay - py) - (ax - px) * (cy - py)) / area
+                w2 = 1.0 - w0 - w1
+                if w0 >= -1e-12 and w1 >= -1e-12 and w2 >= -1e-12:
+                    z = w0 * az + w1 * bz + w2 * cz
+                    if z > heights[r, c]:
+                        heights[r, c] = z
+
+
+def heightfield_from_mesh(path: Path, pitch_mm: float | None = None) -> HeightField:
+    """The top surface of a mesh tile (the highest upward-facing triangle over each point).
+
+    Sampled on a grid of ``pitch_mm`` (default: the median edge length of the upward
+    triangles) over the tile's footprint, one pitch inside its outline. Undercuts are
+    not seen: this is the surface a camera and a light straight above would see.
+    """
+    import trimesh
+
+    try:
+        mesh = trimesh.load(path, force="mesh", process=False)
+    except Exception as exc:
+        raise PrintappError(f"{path}: not a readable mesh ({exc})") from None
+    if len(mesh.faces) == 0:
+        raise PrintappError(f"{path}: the mesh has no triangles")
+    vertices = np.ascontiguousarray(mesh.vertices, dtype=np.float64)
+    faces = np.ascontiguousarray(mesh.faces, dtype=np.int64)
+    up = mesh.face_normals[:, 2] > 0.1
+    if not np.any(up):
+        raise PrintappError(f"{path}: the mesh has no upward-facing surface to measure")
+    if pitch_mm is None:
+        edges = mesh.edges_unique_length
+        pitch_mm = float(np.median(edges)) if len(edges) else 0.0
+    if not (pitch_mm > 0):
+        raise PrintappError(f"--pitch-mm: expected a positive pitch, got {pitch_mm}")
+    lo, hi = vertices.min(axis=0), vertices.max(axis=0)
+    nx = int((hi[0] - lo[0]) / pitch_mm) - 1
+    ny = int((hi[1] - lo[1]) / pitch_mm) - 1
+    if nx < 8 or ny < 8:
+        raise PrintappError(
+            f"{path}: the tile is too small for pitch {pitch_mm:g} mm (fewer than 8 x 8 samples)"
+        )
+    if nx * ny > 16_000_000:
+        raise PrintappError(
+            f"--pitch-mm: {pitch_mm:g} mm gives {nx} x {ny} samples; expected at most 16 million"
+        )
+    heights = np.full((ny, nx), -np.inf)
+    _top_surface(vertices, faces, lo[0] + pitch_mm, lo[1] + pitch_mm, pitch_mm, heights)
+    if not np.all(np.isfinite(heights)):
+        raise PrintappError(f"{path}: the top surface has holes; expected a closed tile seen from above")
+    return HeightField(heights, pitch_mm, pitch_mm, lo[0] + pitch_mm, lo[1] + pitch_mm)
+
+
+def parse_incident(spec: str | None) -> tuple[tuple[float, float], ...] | None:
+    """``"THETA:PHI,THETA:PHI"`` in degrees (or bare ``THETA`` for phi = 0)."""
+    if spec is None:
+        return None
+    pairs = []
+    for item in spec.split(","):
+        theta, _, phi = item.strip().partition(":")
+        try:
+            t, p = float(theta), float(phi) if phi else 0.0
+        except ValueError:
+            raise PrintappError(
+                f"--incident-deg: expected THETA:PHI pairs in degrees, got '{item}'"
+            ) from None
+        if not (0.0 <= t < 90.0) or not math.isfinite(p):
+            raise PrintappError(f"--incident-deg: polar angles must lie in [0, 90) degrees, got '{item}'")
+        pairs.append((t, p))
+    if not pairs:
+        raise PrintappError("--incident-deg: expected at least one THETA:PHI pair")
+    return tuple(pairs)
+
+
+def plot_brdf(appearance, path: Path, title: str) -> None:
+    """The table as polar maps (one per incident direction, log scale) and cuts in the plane of incidence."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.colors import LogNorm
+
+    from render.brdf_model import sampled_bin_average
+
+    table = appearance.table
+    n_in = table.wi.shape[0]
+    cols = min(n_in, 4)
+    rows = -(-n_in // cols)
+    fig = plt.figure(figsize=(3.0 * cols, 3.0 * rows + 3.2), dpi=100)
+    theta_c = 0.5 * (table.theta_o_edges[:-1] + table.theta_o_edges[1:])
+    f_pos = table.f[table.f > 0]
+    vmin = float(np.percentile(f_pos, 5)) if f_pos.size else 1e-3
+    vmax = float(table.f.max()) if f_pos.size else 1.0
+    for k in range(n_in):
+        ax = fig.add_subplot(rows + 1, cols, k + 1, projection="polar")
+        mesh = ax.pcolormesh(
+            table.phi_o_edges,
+            np.degrees(table.theta_o_edges),
+            np.clip(table.f[k], vmin, None),
+            norm=LogNorm(vmin=vmin, vmax=max(vmax, vmin * 10)),
+            cmap="magma",
+            shading="flat",
+        )
+        wi = table.wi[k]
+        ax.set_title(
+            f"in {math.degrees(math.acos(wi[2])):.0f}°, {math.degrees(math.atan2(wi[1], wi[0])) % 360:.0f}°",
+            fontsize=8,
+        )
+        ax.set_yticks([30, 60, 90])
+        ax.tick_params(labelsize=6)
+    fig.colorbar(mesh, ax=fig.axes, shrink=0.6, label="f (1/sr)")
+    # Cuts through the plane of incidence: the table with its error bars, and the fit.
+    fitted = sampled_bin_average(appearance.fit.model, table.wi, table.theta_o_edges, table.phi_o_edges)
+    ax = fig.add_subplot(rows + 1, 1, rows + 1)
+    n_phi = table.f.shape[2]
+    for k in range(n_in):
+        phi_i = math.atan2(table.wi[k, 1], table.wi[k, 0]) % (2 * math.pi)
+        forward = int(((phi_i + math.pi) % (2 * math.pi)) / (2 * math.pi) * n_phi) % n_phi
+        back = int(phi_i / (2 * math.pi) * n_phi) % n_phi
+        angle = np.concatenate([-np.degrees(theta_c[::-1]), np.degrees(theta_c)])
+        measured = np.concatenate([table.f[k, ::-1, back], table.f[k, :, forward]])
+        error = np.concatenate([table.stderr[k, ::-1, back], table.stderr[k, :, forward]])
+        model = np.concatenate([fitted[k, ::-1, back], fitted[k, :, forward]])
+        line = ax.errorbar(angle, measured, yerr=error, fmt=".", ms=2, lw=0.5)
+        ax.plot(angle, model, "-", lw=0.8, color=line[0].get_color())
+    ax.set_yscale("log")
+    ax.set_xlabel("outgoing angle in the plane of incidence (deg, + towards the mirror side)")
+    ax.set_ylabel("f (1/sr)")
+    fit = appearance.fit
+    ax.set_title(
+        f"{title}: dots the traced table, lines the fitted {fit.model.distribution} model "
+        f"(relative error {fit.relative_error:.1%})",
+        fontsize=9,
+    )
+    fig.savefig(path)
+    plt.close(fig)

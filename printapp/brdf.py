@@ -82,7 +82,8 @@ def heightfield_from_mesh(path: Path, pitch_mm: float | None = None) -> HeightFi
     """The top surface of a mesh tile (the highest upward-facing triangle over each point).
 
     Sampled on a grid of ``pitch_mm`` (default: the median edge length of the upward
-    triangles) over the tile's footprint, one pitch inside its outline. Undercuts are
+    triangles, the grid's own spacing for a slab from ``printapp emboss``, whose samples
+    are then met exactly) over the tile's footprint, one pitch inside its outline. Undercuts are
     not seen: this is the surface a camera and a light straight above would see.
     """
     import trimesh
@@ -99,8 +100,11 @@ def heightfield_from_mesh(path: Path, pitch_mm: float | None = None) -> HeightFi
     if not np.any(up):
         raise PrintappError(f"{path}: the mesh has no upward-facing surface to measure")
     if pitch_mm is None:
-        edges = mesh.edges_unique_length
-        pitch_mm = float(np.median(edges)) if len(edges) else 0.0
+        # The top's own edges (walls and floor have long ones): on a grid slab, two of each
+        # triangle's three edges are the grid's spacing, so the median is the spacing.
+        top = faces[up]
+        edges = np.linalg.norm(vertices[top] - vertices[np.roll(top, 1, axis=1)], axis=2).ravel()
+        pitch_mm = float(np.median(edges))
     if not (pitch_mm > 0):
         raise PrintappError(f"--pitch-mm: expected a positive pitch, got {pitch_mm}")
     lo, hi = vertices.min(axis=0), vertices.max(axis=0)

@@ -47,6 +47,7 @@ def test_demo_writes_every_output(demo_runs):
         "model.3mf",
         "slices.sl1",
         "preview.png",
+        "brdf.npz",
         "design.resolved.toml",
         "manifest.json",
     }
@@ -85,7 +86,7 @@ def test_demo_preview_is_an_image_of_something(demo_runs):
 def test_demo_is_deterministic(demo_runs):
     base, _, second = demo_runs
     assert second.returncode == 0, second.stderr
-    for name in ("model.stl", "model.3mf", "slices.sl1", "design.resolved.toml", "preview.png"):
+    for name in ("model.stl", "model.3mf", "slices.sl1", "design.resolved.toml", "preview.png", "brdf.npz"):
         assert digest(base / "a" / name) == digest(base / "b" / name), name
 
 
@@ -162,7 +163,7 @@ spp = 4
     assert result.returncode == 3
     assert "less than one layer" in result.stderr and "anisotropy" in result.stderr
     names = {p.name for p in out.iterdir()}
-    assert names == {"preview.png", "design.resolved.toml", "manifest.json"}
+    assert names == {"preview.png", "brdf.npz", "design.resolved.toml", "manifest.json"}
     manifest = json.loads((out / "manifest.json").read_text())
     assert manifest["verification"]["passed"] is False
     assert len(manifest["verification"]["reasons"]) == 2

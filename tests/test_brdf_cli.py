@@ -1,0 +1,192 @@
+"""``printapp brdf`` end to end: designs, height maps, mesh tiles, determinism and bad input."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+from PIL import Image
+from typer.testing import CliRunner
+
+from printapp.cli import app
+from render.fresnel import fresnel_dielectric
+
+runner = CliRunner()
+
+
+def brdf(*args):
+    return runner.invoke(app, ["brdf", *map(str, args)])
+
+
+def load(path):
+    with np.load(path) as data:
+        return {k: data[k] for k in data.files}
+
+
+@pytest.fixture(scope="module")
+def ripple_npy(tmp_path_factory):
+    # Ripples along x (slopes along x), periodic: 16 samples per period of 0.4 mm.
+    folder = tmp_path_factory.mktemp("maps")
+    x = np.arange(128) * 0.025
+    heights = 0.005 * np.sin(2 * math.pi * x / 0.4)[None, :] * np.ones((96, 1))
+    path = folder / "ripples.npy"
+    np.save(path, heights)
+    return path
+
+
+def test_height_map_gives_the_table_the_plot_and_the_metrics(tmp_path, ripple_npy):
+    out, plot, metrics = tmp_path / "b.npz", tmp_path / "b.png", tmp_path / "m.json"
+    result = brdf(
+        ripple_npy,
+        "--pitch-mm",
+        0.025,
+        "--periodic",
+        "--rays",
+        20000,
+        "-o",
+        out,
+        "--plot",
+        plot,
+        "--json",
+        metrics,
+    )
+    assert result.exit_code == 0, result.output
+    table = load(out)
+    n_in = table["wi"].shape[0]
+    assert table["f"].shape == (n_in, 45, 90) == table["stderr"].shape
+    assert table["theta_o_edges"][-1] == pytest.approx(math.pi / 2)
+    assert np.allclose(np.linalg.norm(table["wi"], axis=1), 1.0)
+    omega = 0.5 * np.outer(np.diff(np.sin(table["theta_o_edges"]) ** 2), np.diff(table["phi_o_edges"]))
+    assert np.allclose((table["f"] * omega).sum(axis=(1, 2)), table["albedo"])
+    assert float(table["ior"]) == 1.5 and np.all(table["rays"] == 20000)
+    m = json.loads(metrics.read_text())
+    # Ripples along x stretch the highlight along x.
+    assert m["highlight"]["anisotropy"] > 3
+    assert min(m["highlight"]["azimuth_deg"], 180 - m["highlight"]["azimuth_deg"]) < 10
+    assert set(m["gloss_gu"]) == {"20", "60", "85"}
+    assert Image.open(plot).size[0] > 300
+    assert "gloss" in result.output and "fitted" in result.output
+
+
+def test_same_input_same_bytes(tmp_path, ripple_npy):
+    a, b = tmp_path / "a.npz", tmp_path / "b.npz"
+    for path in (a, b):
+        result = brdf(
+            ripple_npy, "--pitch-mm", 0.025, "--rays", 5000, "--incident-deg", "0,45:30", "-o", path
+        )
+        assert result.exit_code == 0, result.output
+    assert a.read_bytes() == b.read_bytes()
+
+
+def test_flat_image_is_polished_resin(tmp_path):
+    image = tmp_path / "flat.png"
+    Image.fromarray(np.full((40, 40), 128, dtype=np.uint8)).save(image)
+    out, metrics = tmp_path / "flat.npz", tmp_path / "flat.json"
+    result = brdf(
+        image,
+        "--width-mm",
+        2,
+        "--depth-mm",
+        0.1,
+        "--rays",
+        4000,
+        "--body-albedo",
+        0,
+        "-o",
+        out,
+        "--json",
+        metrics,
+    )
+    assert result.exit_code == 0, result.output
+    m = json.loads(metrics.read_text())
+    expected = (
+        100
+        * fresnel_dielectric(math.cos(math.radians(60)), 1.5)
+        / fresnel_dielectric(math.cos(math.radians(60)), 1.567)
+    )
+    assert m["gloss_gu"]["60"] == pytest.approx(float(expected), abs=1e-3)
+    assert load(out)["albedo"][0] == pytest.approx(0.04)
+
+
+def test_mesh_tile_and_its_height_map_agree(tmp_path, ripple_npy):
+    # The same ripples as an image, embossed to a closed slab, then measured from its mesh.
+    heights = np.load(ripple_npy)
+    grey = np.round((heights - heights.min()) / np.ptp(heights) * 65535).astype(np.uint16)
+    image = tmp_path / "ripples.png"
+    Image.fromarray(grey).save(image)
+    stl = tmp_path / "tile.stl"
+    emboss = runner.invoke(
+        app,
+        [
+            "emboss",
+            str(image),
+            "--width-mm",
+            "3.175",
+            "--depth-mm",
+            "0.01",
+            "--pitch-mm",
+            "0.025",
+            "-o",
+            str(stl),
+        ],
+    )
+    assert emboss.exit_code == 0, emboss.output
+    from_mesh, from_map = tmp_path / "mesh.json", tmp_path / "map.json"
+    assert brdf(stl, "--rays", 20000, "-o", tmp_path / "m.npz", "--json", from_mesh).exit_code == 0
+    result = brdf(
+        image,
+        "--width-mm",
+        3.175,
+        "--depth-mm",
+        0.01,
+        "--rays",
+        20000,
+        "-o",
+        tmp_path / "i.npz",
+        "--json",
+        from_map,
+    )
+    assert result.exit_code == 0, result.output
+    a, b = json.loads(from_mesh.read_text()), json.loads(from_map.read_text())
+    assert a["from"] == "mesh tile's top surface"
+    assert a["highlight"]["anisotropy"] == pytest.approx(b["highlight"]["anisotropy"], rel=0.15)
+    assert a["gloss_gu"]["60"] == pytest.approx(b["gloss_gu"]["60"], rel=0.15, abs=1.0)
+
+
+def test_design_file_uses_the_as_printed_relief_and_the_design_material(tmp_path):
+    design = tmp_path / "d.toml"
+    design.write_text(
+        "[base]\nwidth_mm = 4.0\ndepth_mm = 4.0\n[texture]\nfeature_size_mm = 1.0\n"
+        "[relief]\namplitude_mm = 0.1\n[material]\nrefractive_index = 1.55\n"
+    )
+    metrics = tmp_path / "m.json"
+    result = brdf(design, "--rays", 5000, "-o", tmp_path / "d.npz", "--json", metrics)
+    assert result.exit_code == 0, result.output
+    m = json.loads(metrics.read_text())
+    assert m["from"] == "as-printed relief"
+    assert m["fit"]["ior"] == 1.55
+    assert float(load(tmp_path / "d.npz")["ior"]) == 1.55
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["missing.npy", "--pitch-mm", "0.1"], "missing.npy"),
+        (["{map}", "--incident-deg", "95:0"], "--incident-deg"),
+        (["{map}", "--incident-deg", "north"], "--incident-deg"),
+        (["{map}", "--pitch-mm", "0.1", "-o", "{tmp}/table.csv"], ".npz"),
+        (["{map}", "--pitch-mm", "0.1", "--ior", "0.5"], "--ior"),
+        (["{map}", "--pitch-mm", "0.1", "--body-albedo", "1.5"], "--body-albedo"),
+        (["{map}"], "pitch"),
+    ],
+)
+def test_bad_input_is_one_clear_sentence_and_writes_nothing(tmp_path, ripple_npy, args, message):
+    filled = [a.format(map=ripple_npy, tmp=tmp_path) for a in args]
+    out = tmp_path / "never.npz"
+    if "-o" not in filled:
+        filled += ["-o", str(out)]
+    result = runner.invoke(app, ["brdf", *filled])
+    assert result.exit_code == 2, result.output
+    assert message in result.output
+    assert "Traceback" not in result.output
+    assert not out.exists() and not (tmp_path / "table.csv").exists()

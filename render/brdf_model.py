@@ -312,13 +312,16 @@ def relative_error(
 
     ``sqrt(sum_b E_b ((f_model - f_table)^2 - stderr^2) / f_table^2 / sum_b E_b)``
     with ``E_b = f_table * omega_b``, over bins holding at least ``floor`` of the
-    reflected energy of their incident direction. Subtracting the table's own
-    variance (when ``stderr`` is given) makes the figure the model's error, not the
-    estimator's noise.
+    reflected energy of their incident direction. With ``stderr``, only bins measured
+    to 25 % or better count, and their variance is taken off, so that the figure is the
+    model's error and not the estimator's noise (NaN when no bin is measured well enough:
+    too few rays).
     """
     energy = f_table * omega
     total = energy.sum(axis=(-2, -1), keepdims=True)
     mask = energy > floor * np.maximum(total, 1e-300)
+    if stderr is not None:
+        mask &= stderr <= 0.25 * f_table
     if not np.any(mask):
         return math.nan, 0
     diff2 = (f_model[mask] - f_table[mask]) ** 2
@@ -346,7 +349,7 @@ def _relative_error_merged(
     ev = np.concatenate([pooled_v, var[rest]])
     rows = np.concatenate([np.arange(n_in), np.nonzero(rest)[0]])
     total = np.bincount(rows, weights=et, minlength=n_in)
-    mask = et > 1e-4 * np.maximum(total[rows], 1e-300)
+    mask = (et > 1e-4 * np.maximum(total[rows], 1e-300)) & (ev <= (0.25 * et) ** 2)
     if not np.any(mask):
         return math.nan, 0
     diff2 = (em[mask] - et[mask]) ** 2 - ev[mask]

@@ -1,0 +1,116 @@
+"""``printapp render``, ``printapp preview`` and the appearance gate of ``printapp design``."""
+
+import json
+
+import numpy as np
+import pytest
+from PIL import Image
+from typer.testing import CliRunner
+
+from printapp.cli import app
+
+runner = CliRunner()
+
+SMALL = """
+name = "small tile"
+[base]
+width_mm = 8.0
+depth_mm = 8.0
+thickness_mm = 1.5
+[texture]
+feature_size_mm = 0.6
+[relief]
+amplitude_mm = 0.1
+[brdf]
+rays = 5000
+[render]
+width_px = 64
+height_px = 48
+spp = 4
+"""
+
+
+@pytest.fixture()
+def small_design(tmp_path):
+    path = tmp_path / "small.toml"
+    path.write_text(SMALL)
+    return path
+
+
+def test_render_picks_geometry_near_and_a_brdf_far(tmp_path, small_design):
+    near = runner.invoke(app, ["render", str(small_design), "-o", str(tmp_path / "near.png")])
+    assert near.exit_code == 0, near.output
+    assert "rendered as geometry" in near.output
+    far = runner.invoke(
+        app, ["render", str(small_design), "--distance-scale", "60", "-o", str(tmp_path / "far.png")]
+    )
+    assert far.exit_code == 0, far.output
+    assert "rendered as model" in far.output or "rendered as table" in far.output
+    assert Image.open(tmp_path / "far.png").size == (64, 48)
+
+
+@pytest.mark.parametrize("mode", ["model", "table", "geometry"])
+def test_every_representation_renders_the_tile(tmp_path, small_design, mode):
+    out, strip = tmp_path / f"{mode}.png", tmp_path / f"{mode}-sweep.png"
+    args = ["render", str(small_design), "--mode", mode, "-o", str(out)]
+    if mode == "model":
+        args += ["--sweep", str(strip)]
+    result = runner.invoke(app, args)
+    assert result.exit_code == 0, result.output
+    assert f"rendered as {mode}" in result.output
+    image = np.asarray(Image.open(out).convert("L"), dtype=float)
+    centre = image[16:32, 24:40].mean()
+    corner = image[:6, :6].mean()
+    assert abs(centre - corner) > 5  # the tile stands out from the background
+    if mode == "model":
+        sweep = Image.open(strip)
+        assert sweep.size == (6 * 160, 120)
+
+
+def test_preview_draws_any_mesh(tmp_path):
+    from pathlib import Path
+
+    mesh = Path(__file__).parent.parent / "data" / "meshes" / "featuretype.STL"
+    out = tmp_path / "view.png"
+    result = runner.invoke(
+        app, ["preview", str(mesh), "-o", str(out), "--width-px", "200", "--height-px", "150"]
+    )
+    assert result.exit_code == 0, result.output
+    image = np.asarray(Image.open(out).convert("L"), dtype=float)
+    assert image.shape == (150, 200) and image.std() > 5
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["render", "{design}", "-o", "{tmp}/r.jpg"], ".png"),
+        (["render", "{tmp}/missing.toml"], "missing.toml"),
+        (["preview", "{tmp}/missing.stl"], "missing.stl"),
+        (["preview", "{design}", "-o", "{tmp}/v.png"], "mesh"),
+    ],
+)
+def test_bad_input_exits_2_with_a_sentence(tmp_path, small_design, args, message):
+    filled = [a.format(design=small_design, tmp=tmp_path) for a in args]
+    result = runner.invoke(app, filled)
+    assert result.exit_code == 2, result.output
+    assert message in result.output and "Traceback" not in result.output
+
+
+def test_gate_passes_met_targets_and_fails_missed_ones_with_the_miss(tmp_path, small_design):
+    met = small_design.read_text() + "[appearance]\ngloss_60 = [0.0, 200.0]\nhaze = [0.0, 200.0]\n"
+    path = tmp_path / "met.toml"
+    path.write_text(met)
+    result = runner.invoke(app, ["design", str(path), "-o", str(tmp_path / "met"), "--quiet"])
+    assert result.exit_code == 0, result.output
+    manifest = json.loads((tmp_path / "met" / "manifest.json").read_text())
+    assert any("gloss_60" in c for c in manifest["verification"]["checks"])
+    assert manifest["render"]["representation"] in ("model", "table", "geometry")
+    assert manifest["brdf"]["fit"]["relative_error"] >= 0
+
+    missed = small_design.read_text() + "[appearance]\ngloss_60 = [150.0, 200.0]\n"
+    path = tmp_path / "missed.toml"
+    path.write_text(missed)
+    result = runner.invoke(app, ["design", str(path), "-o", str(tmp_path / "missed"), "--quiet"])
+    assert result.exit_code == 3
+    assert "gloss_60" in result.output and "misses the target [150, 200] by" in result.output
+    assert not (tmp_path / "missed" / "model.stl").exists()

@@ -1,0 +1,190 @@
+"""The printed surface's three representations in Mitsuba: furnace, Fresnel, plugins against Mitsuba's own.
+
+Renders are tiny and compared statistically (means over regions, with tolerances
+above the Monte Carlo noise), never byte for byte.
+"""
+
+import math
+
+import numpy as np
+import pytest
+import trimesh
+
+from render.brdf_model import MicrofacetBRDF
+from render.fresnel import fresnel_dielectric
+from render.mitsuba_adapter import (
+    CompactSurface,
+    StudioLight,
+    TableSurface,
+    choose_variant,
+    render_resin_mesh,
+)
+from render.representation import Choice, body_tint, choose_representation, compact_surface
+
+UNIFORM = StudioLight(radiance=0.0, environment=1.0)  # only a uniform white environment
+
+
+def render(
+    mesh, surface=None, *, body=(0.0, 0.0, 0.0), spp=64, elevation_deg=40.0, size=(64, 48), light=UNIFORM
+):
+    choose_variant()
+    return render_resin_mesh(
+        np.asarray(mesh.vertices),
+        np.asarray(mesh.faces),
+        body_albedo=body,
+        refractive_index=1.5,
+        width_px=size[0],
+        height_px=size[1],
+        spp=spp,
+        elevation_rad=math.radians(elevation_deg),
+        light=light,
+        surface=surface,
+    )
+
+
+def sphere():
+    return trimesh.creation.icosphere(subdivisions=4, radius=5.0)
+
+
+def object_mask(shape, frac=0.25):
+    """The central part of the frame, where the framed sphere certainly is."""
+    h, w = shape[:2]
+    mask = np.zeros((h, w), dtype=bool)
+    mask[int(h * (0.5 - frac)) : int(h * (0.5 + frac)), int(w * 0.5 - h * frac) : int(w * 0.5 + h * frac)] = (
+        True
+    )
+    return mask
+
+
+# --- The chooser ----------------------------------------------------------------------------
+
+
+def test_chooser_takes_geometry_where_features_span_pixels_and_a_brdf_where_they_do_not():
+    assert choose_representation(2.0, 0.05, 0.05).mode == "geometry"
+    far = choose_representation(2.0, 20.0, 0.05)
+    assert far.mode == "model" and "5.0%" in far.reason
+    assert choose_representation(2.0, 20.0, 0.40).mode == "table"
+    assert choose_representation(2.0, 20.0, math.nan).mode == "table"
+    assert isinstance(far, Choice) and far.pixels_per_feature == pytest.approx(0.1)
+    with pytest.raises(ValueError):
+        choose_representation(0.0, 1.0, 0.1)
+
+
+def test_body_tint_turns_the_grey_trace_into_each_channel():
+    tint = body_tint((0.8, 0.4, 0.1), 0.4, 1.5)
+    assert tint[1] == pytest.approx(1.0)
+    assert tint[0] > 2.0 > tint[1] > tint[2]  # 0.8 returns more than twice 0.4 (internal reflections)
+    model = MicrofacetBRDF("ggx", 0.2, 0.1, 0.3, 0.4, 1.5)
+    surface = compact_surface(model, (0.8, 0.4, 0.1), 0.4)
+    assert surface.body_rgb == pytest.approx((0.8, 0.4, 0.1)) and surface.alpha_u == 0.2
+
+
+# --- Closed forms -----------------------------------------------------------------------------
+
+
+def test_furnace_white_resin_in_a_white_world_is_white():
+    # Geometry's smooth plastic and the compact model, both with a white, non-absorbing body.
+    plastic = render(sphere(), body=(1.0, 1.0, 1.0))
+    compact = render(
+        sphere(), CompactSurface("ggx", 0.05, 0.05, 0.0, 1.5, (1.0, 1.0, 1.0)), body=(1.0, 1.0, 1.0)
+    )
+    mask = object_mask(plastic.shape)
+    assert plastic[mask].mean() == pytest.approx(1.0, abs=0.02)
+    assert compact[mask].mean() == pytest.approx(1.0, abs=0.03)  # Smith single scattering loses a little
+
+
+def test_flat_black_resin_reflects_fresnel_of_the_view_angle():
+    plane = trimesh.creation.box(extents=(100.0, 100.0, 0.1))
+    for elevation in (20.0, 50.0):
+        image = render(plane, elevation_deg=elevation, spp=16, size=(48, 48))
+        centre = image[20:28, 20:28].mean()
+        expected = float(fresnel_dielectric(math.sin(math.radians(elevation)), 1.5))
+        assert centre == pytest.approx(expected, rel=0.05)
+
+
+# --- The table plugin against Mitsuba's own BSDFs --------------------------------------------
+
+
+def tabulate(plugin: dict, n_ti=10, n_pi=12, n_to=45, n_po=90, theta_max_deg=85.0, sub=3) -> np.ndarray:
+    """Bin averages of a Mitsuba BSDF over the table grid, from its own eval()."""
+    import drjit as dr
+    import mitsuba as mi
+
+    from render.brdf_model import bin_directions
+
+    choose_variant()
+    bsdf = mi.load_dict(plugin)
+    theta_i = np.radians(np.linspace(0.0, theta_max_deg, n_ti))
+    phi_i = np.arange(n_pi) * 2 * math.pi / n_pi
+    dirs = bin_directions(np.linspace(0, math.pi / 2, n_to + 1), np.linspace(0, 2 * math.pi, n_po + 1), sub)
+    wo = dirs.reshape(-1, 3)
+    out = np.empty((n_ti, n_pi, n_to, n_po))
+    for a, t in enumerate(theta_i):
+        for b, p in enumerate(phi_i):
+            wi = np.array([math.sin(t) * math.cos(p), math.sin(t) * math.sin(p), math.cos(t)])
+            si = dr.zeros(mi.SurfaceInteraction3f, wo.shape[0])
+            si.wi = mi.Vector3f(*[np.full(wo.shape[0], c, dtype=np.float32) for c in wi])
+            si.sh_frame = mi.Frame3f(mi.Vector3f(0, 0, 1))
+            value = bsdf.eval(
+                mi.BSDFContext(), si, mi.Vector3f(*[wo[:, c].astype(np.float32) for c in range(3)])
+            )
+            f = np.asarray(value)[0] if np.asarray(value).ndim == 2 else np.asarray(value.x)
+            f = f / np.maximum(wo[:, 2], 1e-9)
+            out[a, b] = f.reshape(n_to, n_po, sub * sub).mean(axis=-1)
+    return out
+
+
+@pytest.mark.parametrize(
+    ("plugin", "part"),
+    [
+        (
+            {
+                "type": "roughplastic",
+                "distribution": "ggx",
+                "alpha": 0.25,
+                "int_ior": 1.5,
+                "diffuse_reflectance": {"type": "rgb", "value": 0.0},
+            },
+            "specular",
+        ),
+        ({"type": "diffuse", "reflectance": {"type": "rgb", "value": 0.6}}, "body"),
+    ],
+)
+def test_table_of_an_analytic_brdf_renders_like_mitsubas_own_plugin(plugin, part):
+    table = tabulate(plugin)
+    zeros = np.zeros_like(table)
+    spec, body = (table, zeros) if part == "specular" else (zeros, table)
+    surface = TableSurface(spec, body, math.radians(85.0))
+    light = StudioLight(radiance=12.0, environment=0.15)
+    ours = render(sphere(), surface, spp=256, light=light)
+    theirs = render(sphere(), plugin, spp=256, light=light)
+    mask = object_mask(ours.shape)
+    assert ours[mask].mean() == pytest.approx(theirs[mask].mean(), rel=0.05)
+    # Region by region (4 x 4 blocks over the object), within noise and the bins' width.
+    h, w = ours.shape[:2]
+    block = lambda img: img[h // 4 : 3 * h // 4, w // 2 - h // 4 : w // 2 + h // 4].mean(axis=2)  # noqa: E731
+    a, b = block(ours), block(theirs)
+    blocks_a = a.reshape(4, a.shape[0] // 4, 4, -1).mean(axis=(1, 3))
+    blocks_b = b.reshape(4, b.shape[0] // 4, 4, -1).mean(axis=(1, 3))
+    assert np.all(np.abs(blocks_a - blocks_b) <= 0.15 * blocks_b + 0.01)
+
+
+def test_compact_surface_renders_like_mitsubas_roughplastic_where_they_are_the_same_model():
+    # Isotropic GGX with a black body: the compact model is Mitsuba's roughplastic up to the
+    # masking term (height-correlated Smith here, separable there): within a few percent.
+    light = StudioLight(radiance=12.0, environment=0.15)
+    ours = render(sphere(), CompactSurface("ggx", 0.2, 0.2, 0.0, 1.5, (0.0, 0.0, 0.0)), spp=256, light=light)
+    theirs = render(
+        sphere(),
+        {
+            "type": "roughplastic",
+            "distribution": "ggx",
+            "alpha": 0.2,
+            "int_ior": 1.5,
+            "diffuse_reflectance": {"type": "rgb", "value": 0.0},
+        },
+        spp=256,
+        light=light,
+    )
+    mask = object_mask(ours.shape)
+    assert ours[mask].mean() == pytest.approx(theirs[mask].mean(), rel=0.05)

@@ -31,6 +31,10 @@ bench: $(STAMP) llvm
 		echo "warning: pyfastnoisesimd did not install; bench noise runs without the Perlin peer" >&2
 	$(BIN)/python -c "import rlic" 2>/dev/null || $(BIN)/python -m pip install --quiet rlic || \
 		echo "warning: rlic did not install; bench lic runs without its peer" >&2
+	$(BIN)/python -c "import embreex" 2>/dev/null || $(BIN)/python -m pip install --quiet embreex || \
+		echo "warning: embreex did not install; bench brdf runs without its Embree peer" >&2
+	$(BIN)/python -c "import miepython" 2>/dev/null || $(BIN)/python -m pip install --quiet miepython || \
+		echo "warning: miepython did not install; bench mie runs without its peer" >&2
 	$(BIN)/printapp bench -o bench-out
 
 llvm:

@@ -196,9 +196,13 @@ STAGES: dict[str, Callable[[int], StageResult]] = {
     "lic": _lazy("bench_lic", "bench_lic"),  # beside rlic
     "slice": _lazy("bench_slice", "bench_slice"),  # beside PrusaSlicer
     "mesh": _lazy("bench_emboss", "bench_emboss"),  # height map to STL beside Blender
+    "brdf": _lazy("bench_brdf", "bench_brdf"),  # beside embreex
     "pitch": bench_pitch,
     "adaptive": _lazy("bench_adaptive", "bench_adaptive"),
+    "mie": _lazy("bench_mie", "bench_mie"),  # Lorenz-Mie beside miepython's JIT; medium vs body albedo
     "pipeline": bench_pipeline,
+    "fit": _lazy("bench_fit", "bench_fit"),  # photos to noise parameters, beside the random-phase texture
+    "render": _lazy("bench_render", "bench_render"),  # model, table and geometry against distance
 }
 
 

@@ -117,7 +117,7 @@ def design(
     force: ForceOption = False,
     quiet: QuietOption = False,
 ) -> None:
-    """Build a design: model.stl, model.3mf, slices.sl1, preview.png, design.resolved.toml, manifest.json."""
+    """Build a design: model.stl, model.3mf, slices.sl1, preview.png, report.html, manifest.json and more."""
     _run(design_file, out if out is not None else Path(f"{design_file.stem}-out"), force, quiet)
 
 
@@ -131,10 +131,19 @@ class TextureKind(StrEnum):
 
 @app.command()
 def texture(
-    kind: Annotated[TextureKind, typer.Argument(help="scn, fbm, turbulence, marble or lic.")],
     out: Annotated[
         Path, typer.Option("--out", "-o", help="Output: .png (8-bit grey) or .npy (raw float64).")
     ],
+    kind: Annotated[
+        TextureKind | None, typer.Argument(help="scn, fbm, turbulence, marble or lic (or --from).")
+    ] = None,
+    from_file: Annotated[
+        Path | None,
+        typer.Option("--from", help="A design or `printapp fit` fragment: its texture table in colour."),
+    ] = None,
+    width_mm: Annotated[
+        float | None, typer.Option(help="--from: side of the square shown (mm) [the design's tile width].")
+    ] = None,
     size: Annotated[int, typer.Option(min=2, max=8192, help="Image side (pixels).")] = 512,
     cells: Annotated[
         float | None, typer.Option(min=1e-6, help="Noise cells across the image [8; lic: size/2].")
@@ -161,7 +170,9 @@ def texture(
     PNG images of scn, fbm, turbulence and lic are scaled from their minimum to their
     maximum; marble is 0.5 (A noise(B p) + 1) clipped to [0, 1]. .npy files hold the raw
     values. lic convolves sparse convolution noise (2-pixel features unless --cells says
-    otherwise) along the streamlines of --field.
+    otherwise) along the streamlines of --field. With --from FILE, the texture of a design
+    (or of a fragment written by `printapp fit`) on a square of --width-mm, coloured by its
+    palette; .npy then holds its values.
     """
     import numpy as np
 
@@ -171,6 +182,18 @@ def texture(
     suffix = out.suffix.lower()
     if suffix not in (".png", ".npy"):
         raise _fail(PrintappError(f"{out}: expected an output file ending in .png or .npy"))
+    if from_file is not None or kind is None:
+        from printapp.texture import write_texture_from_file
+
+        try:
+            if kind is not None:
+                raise PrintappError(f"give either KIND ({kind.value}) or --from FILE, not both")
+            if from_file is None:
+                raise PrintappError("expected a texture KIND (scn, fbm, turbulence, marble, lic) or --from")
+            _out.print(write_texture_from_file(from_file, out, size, width_mm))
+        except PrintappError as exc:
+            raise _fail(exc) from None
+        return
     if cells is None:
         cells = size / 2.0 if kind is TextureKind.lic else 8.0
     axis = (np.arange(size) + 0.5) * (cells / size)
@@ -788,6 +811,291 @@ def brdf(
     for path in (out, plot, json_out):
         if path is not None:
             _out.print(f"  wrote {path}")
+
+
+@app.command("material")
+def material_command(
+    material: Annotated[
+        str, typer.Argument(help="A catalogue material (white-resin, milk, ...) or a material .toml file.")
+    ],
+    param: Annotated[
+        list[str] | None, typer.Option("--param", "-p", help="Set a parameter, NAME=VALUE (repeatable).")
+    ] = None,
+    wavelengths_nm: Annotated[
+        str | None, typer.Option(help="Comma-separated wavelengths (nm) [the material's own samples].")
+    ] = None,
+    as_json: Annotated[bool, typer.Option("--json", help="Print JSON instead of tables.")] = False,
+    plot: Annotated[
+        Path | None, typer.Option("--plot", help="Write spectra and phase functions to this PNG.")
+    ] = None,
+) -> None:
+    """Optical properties of a material from its particles (Lorenz-Mie): sigma_s, sigma_a, g, in RGB too."""
+    import json
+    import math
+
+    from rich.table import Table
+
+    from printapp.exporters import atomic_write_bytes
+    from printapp.materials import material_plot_png, material_report
+
+    try:
+        values: dict[str, float] = {}
+        for item in param or []:
+            key, sep, text = item.partition("=")
+            try:
+                number = float(text)
+            except ValueError:
+                number = math.nan
+            if not sep or not key or not math.isfinite(number):
+                raise PrintappError(f"--param: expected NAME=VALUE with a finite number, got '{item}'")
+            values[key.strip()] = number
+        lam = None
+        if wavelengths_nm is not None:
+            try:
+                lam = [float(v) for v in wavelengths_nm.split(",")]
+            except ValueError:
+                raise PrintappError(
+                    f"--wavelengths-nm: expected comma-separated numbers, got '{wavelengths_nm}'"
+                ) from None
+            increasing = all(b > a for a, b in zip(lam, lam[1:], strict=False))
+            if not increasing or any(not (math.isfinite(v) and v > 0) for v in lam):
+                raise PrintappError(
+                    f"--wavelengths-nm: expected increasing positive wavelengths, got '{wavelengths_nm}'"
+                )
+        if plot is not None and plot.suffix.lower() != ".png":
+            raise PrintappError(f"{plot}: expected a plot file ending in .png")
+        report, optics = material_report(material, values, lam)
+        if plot is not None:
+            atomic_write_bytes(plot, material_plot_png(report, optics))
+    except PrintappError as exc:
+        raise _fail(exc) from None
+    if as_json:
+        typer.echo(json.dumps(report, indent=2))
+        return
+    spectral = report["spectral"]
+    table = Table(
+        "wavelength nm",
+        "host n",
+        "sigma_s 1/mm",
+        "sigma_a 1/mm",
+        "sigma_t 1/mm",
+        "g",
+        "sigma_s' 1/mm",
+        "transport mfp mm",
+        title=f"{report['material']}: {report['description']}",
+    )
+    for k, lam_k in enumerate(spectral["wavelength_nm"]):
+        table.add_row(
+            f"{lam_k:g}",
+            f"{spectral['host_n'][k]:.4f}",
+            f"{spectral['sigma_s_per_mm'][k]:.5g}",
+            f"{spectral['sigma_a_per_mm'][k]:.4g}",
+            f"{spectral['sigma_t_per_mm'][k]:.5g}",
+            f"{spectral['g'][k]:.4f}",
+            f"{spectral['reduced_scattering_per_mm'][k]:.5g}",
+            f"{spectral['transport_mfp_mm'][k]:.4g}",
+        )
+    _out.print(table)
+    rgb = report["rgb"]
+
+    def triple(values_: list, fmt: str) -> str:
+        return ", ".join("inf" if v is None else format(v, fmt) for v in values_)
+
+    parameters = ", ".join(f"{k} = {v:g}" for k, v in report["parameters"].items()) or "none"
+    _out.print(f"parameters: {parameters}")
+    _out.print(
+        f"linear RGB: sigma_s ({triple(rgb['sigma_s_per_mm'], '.5g')}) 1/mm, "
+        f"sigma_a ({triple(rgb['sigma_a_per_mm'], '.4g')}) 1/mm, g {rgb['g']:.4f}, "
+        f"transport mfp ({triple(rgb['transport_mfp_mm'], '.4g')}) mm"
+    )
+    _out.print(
+        f"body albedo ({triple(rgb['body_albedo'], '.4f')}), refractive index {rgb['refractive_index']:.4f}"
+    )
+    for source in report["sources"]:
+        _out.print(f"source: {source}")
+    if plot is not None:
+        _out.print(f"wrote {plot}")
+
+
+class RenderMode(StrEnum):
+    auto = "auto"
+    model = "model"
+    table = "table"
+    geometry = "geometry"
+
+
+@app.command()
+def render(
+    design_file: Annotated[Path, typer.Argument(help="Design file (TOML).")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="The image to write (.png).")] = Path("render.png"),
+    spp: Annotated[int | None, typer.Option(min=1, max=65536, help="Samples per pixel [design's].")] = None,
+    mode: Annotated[
+        RenderMode, typer.Option(help="Relief as its fitted BRDF, its traced table, or geometry.")
+    ] = RenderMode.auto,
+    distance_scale: Annotated[
+        float | None, typer.Option(min=0.2, max=1000.0, help="Camera distance, 1 = framing [design's].")
+    ] = None,
+    sweep: Annotated[
+        Path | None, typer.Option(help="Also write a light-sweep strip (.png): the light circles the object.")
+    ] = None,
+) -> None:
+    """Path-trace a design's predicted appearance, with the representation the camera needs."""
+    from PIL import Image
+
+    from printapp.design import load_design
+    from printapp.exporters import atomic_write_bytes
+    from printapp.mesh import combine_solids
+    from printapp.pipeline import appearance_field, build_relief
+    from printapp.rendering import light_sweep, predict_for_design, render_preview
+    from render.mitsuba_adapter import to_srgb8
+
+    def png_bytes(image) -> bytes:
+        import io
+
+        buffer = io.BytesIO()
+        Image.fromarray(to_srgb8(image)).save(buffer, format="png", optimize=False, compress_level=6)
+        return buffer.getvalue()
+
+    try:
+        for path in (out, sweep):
+            if path is not None and path.suffix.lower() != ".png":
+                raise PrintappError(f"{path}: expected an image file ending in .png")
+        design = load_design(design_file)
+        updates = {"mode": mode.value}
+        if spp is not None:
+            updates["spp"] = spp
+        if distance_scale is not None:
+            updates["distance_scale"] = distance_scale
+        design = design.model_copy(update={"render": design.render.model_copy(update=updates)})
+        relief = build_relief(design)
+        mesh = combine_solids(relief.mesh, design.combine) if design.combine else relief.mesh
+        field, _ = appearance_field(design, relief)
+        predicted = predict_for_design(design, field)
+        preview = render_preview(design, relief, mesh, predicted, field)
+        atomic_write_bytes(out, png_bytes(preview.image))
+        if sweep is not None:
+            atomic_write_bytes(sweep, png_bytes(light_sweep(design, relief, mesh, predicted, field)))
+    except PrintappError as exc:
+        raise _fail(exc) from None
+    if preview.warning:
+        _err.print(f"warning: {preview.warning}")
+    _out.print(f"{design.name}: rendered as {preview.mode} ({preview.reason}) on {preview.variant}")
+    for path in (out, sweep):
+        if path is not None:
+            _out.print(f"  wrote {path}")
+
+
+@app.command()
+def preview(
+    model: Annotated[Path, typer.Argument(help="Any mesh (.stl .ply .obj .3mf .off).")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="The image to write (.png).")] = Path("view.png"),
+    width_px: Annotated[int, typer.Option(min=16, max=4096)] = 800,
+    height_px: Annotated[int, typer.Option(min=16, max=4096)] = 600,
+) -> None:
+    """A quick off-screen look at any mesh (pyvista, no path tracing)."""
+    from printapp.viewer import quick_view
+
+    try:
+        if out.suffix.lower() != ".png":
+            raise PrintappError(f"{out}: expected an image file ending in .png")
+        faces = quick_view(model, out, width_px, height_px)
+    except PrintappError as exc:
+        raise _fail(exc) from None
+    _out.print(f"{model.name}: {faces:,} triangles; wrote {out}")
+
+
+class FitModel(StrEnum):
+    auto = "auto"
+    fbm = "fbm"
+    turbulence = "turbulence"
+    marble = "marble"
+
+
+@app.command()
+def fit(
+    image: Annotated[Path, typer.Argument(help="A photo (PNG, JPEG, WebP, TIFF...) of at least 32 x 32 px.")],
+    out: Annotated[
+        Path, typer.Option("--out", "-o", help="The design fragment to write (TOML, a [texture] table).")
+    ] = Path("fitted.toml"),
+    model: Annotated[FitModel, typer.Option(help="Model to fit; auto keeps the best score.")] = FitModel.auto,
+    scale_mm_per_px: Annotated[
+        float | None, typer.Option(help="Millimetres per photo pixel [the photo's width spans 20 mm].")
+    ] = None,
+    preview: Annotated[
+        Path | None, typer.Option(help="Write the photo and the synthesis side by side (.png).")
+    ] = None,
+    json_out: Annotated[
+        Path | None, typer.Option("--json", help="Write model, parameters and quality measures (.json).")
+    ] = None,
+    seed: Annotated[
+        int, typer.Option(min=0, help="Seed of the noise, the optimiser's scan and baselines.")
+    ] = 0,
+    budget: Annotated[int, typer.Option(min=8, max=100000, help="Optimiser evaluations per model.")] = 160,
+    size: Annotated[
+        int, typer.Option(min=32, max=4096, help="Longer side the photo is analysed at (px).")
+    ] = 512,
+    quiet: QuietOption = False,
+) -> None:
+    """Fit procedural noise (fBm, turbulence, veined marble) to a photo, and say how close it comes.
+
+    Writes a design fragment that `printapp design` prints and `printapp texture --from`
+    renders; --preview puts photo and synthesis side by side; --json holds the parameters
+    and the quality measures beside two baselines (random parameters, random phase).
+    """
+    from rich.table import Table
+
+    from printapp.fit import fit_photo, write_outputs
+    from printapp.progress import StageTimer
+
+    try:
+        if out.suffix.lower() != ".toml":
+            raise PrintappError(f"{out}: expected an output file ending in .toml")
+        if preview is not None and preview.suffix.lower() != ".png":
+            raise PrintappError(f"{preview}: expected a preview file ending in .png")
+        if json_out is not None and json_out.suffix.lower() != ".json":
+            raise PrintappError(f"{json_out}: expected a metrics file ending in .json")
+        with StageTimer(quiet=quiet) as timer:
+            result = fit_photo(
+                image,
+                model=model.value,
+                scale_mm_per_px=scale_mm_per_px,
+                seed=seed,
+                budget=budget,
+                max_side=size,
+                timer=timer,
+            )
+        written = write_outputs(result, out, preview, json_out)
+    except PrintappError as exc:
+        raise _fail(exc) from None
+    metrics = result.metrics()
+    table = Table(
+        "measure",
+        "fit",
+        "random parameters",
+        "random phase",
+        "photo halves",
+        title=(
+            f"{image.name}: {metrics['model']} fit, score {metrics['score']:.2f} ({result.seconds:.1f} s)"
+        ),
+    )
+    measures = metrics["measures"]
+    for key in ("log_spectrum_distance", "wasserstein", "glcm_difference"):
+        table.add_row(
+            key,
+            *(
+                f"{measures[k][key]:.4g}"
+                for k in ("fit", "random_parameters", "random_phase", "photo_halves")
+            ),
+        )
+    _out.print(table)
+    params = {k: v for k, v in metrics["params"].items() if k not in ("palette", "palette_range")}
+    _out.print(", ".join(f"{k} {v}" for k, v in params.items()))
+    if len(metrics["models"]) > 1:
+        _out.print("scores: " + ", ".join(f"{k} {v['score']:.2f}" for k, v in metrics["models"].items()))
+    for warning in result.warnings:
+        _err.print(f"[bold yellow]warning:[/] {warning}", markup=True)
+    for path in written:
+        _out.print(f"  wrote {path}")
 
 
 @app.command()

@@ -194,15 +194,43 @@ Unit = Annotated[float, at.Ge(0.0), at.Le(1.0)]
 
 
 class Material(_Section):
-    """The resin: its refractive index and the colour its pigments give the body."""
+    """The resin: its refractive index and the colour its pigments give the body.
+
+    Or, with ``name``, a material of the catalogue (``printapp material``) whose index, body
+    albedo and translucency are computed from its particles (Lorenz–Mie), with ``parameters``
+    such as ``tio2_volume_fraction``; ``refractive_index`` and ``body_albedo`` are then derived
+    and may not be given. ``translucency`` picks the rendering: ``"auto"`` renders a
+    homogeneous medium only where light wanders farther than the pixels can show
+    (render.translucency), ``"medium"`` and ``"albedo"`` force one.
+    """
 
     refractive_index: Annotated[float, at.Ge(1.0), at.Le(3.0)] = 1.5
     body_albedo: tuple[Unit, Unit, Unit] = Field(default=(0.8, 0.8, 0.8), strict=False)
     """Linear-RGB albedo of light that enters the resin and comes back out diffusely."""
+    name: str | None = Field(default=None, min_length=1, max_length=200)
+    parameters: dict[str, float] = Field(default_factory=dict)
+    translucency: Literal["auto", "medium", "albedo"] = "auto"
+
+    @model_validator(mode="after")
+    def _named_material(self) -> Material:
+        if self.name is None:
+            if self.parameters:
+                raise ValueError("'parameters' needs a material 'name'")
+            return self
+        given = sorted({"refractive_index", "body_albedo"} & self.model_fields_set)
+        if given:
+            raise ValueError(
+                f"give either 'name' or '{given[0]}': a named material's index and albedo are derived"
+            )
+        from printapp.materials import check_design_material
+
+        check_design_material(self.name, self.parameters)
+        return self
 
 
 RangeBound = Annotated[float, at.Ge(0.0), at.Le(1000.0)]
 GlossUnits = Annotated[float, at.Ge(0.0), at.Le(200.0)]
+Degrees180 = Annotated[float, at.Ge(0.0), at.Le(180.0)]
 
 
 def _check_range(name: str, pair: tuple[float, float] | None) -> None:
@@ -231,10 +259,20 @@ class Appearance(_Section):
     gloss_85: tuple[GlossUnits, GlossUnits] | None = Field(default=None, strict=False)
     haze: tuple[GlossUnits, GlossUnits] | None = Field(default=None, strict=False)
     """Haze index G60 - G20 (ASTM D4039)."""
+    highlight_azimuth_deg: tuple[Degrees180, Degrees180] | None = Field(default=None, strict=False)
+    """Direction of the highlight's long axis in [0, 180) degrees from +x, from the traced BRDF."""
 
     @model_validator(mode="after")
     def _ordered(self) -> Appearance:
-        for name in ("roughness", "anisotropy", "gloss_20", "gloss_60", "gloss_85", "haze"):
+        for name in (
+            "roughness",
+            "anisotropy",
+            "gloss_20",
+            "gloss_60",
+            "gloss_85",
+            "haze",
+            "highlight_azimuth_deg",
+        ):
             _check_range(name, getattr(self, name))
         return self
 
@@ -258,6 +296,11 @@ class Render(_Section):
     spp: Annotated[int, at.Ge(1), at.Le(65536)] = 32
     elevation_rad: Annotated[float, at.Gt(0.0), at.Lt(math.pi / 2)] = math.radians(40.0)
     azimuth_rad: Annotated[float, at.Ge(-2 * math.pi), at.Le(2 * math.pi)] = math.radians(-60.0)
+    distance_scale: Annotated[float, at.Ge(0.2), at.Le(1000.0)] = 1.0
+    """Camera distance relative to the one that frames the object (larger: farther away)."""
+    mode: Literal["auto", "model", "table", "geometry"] = "auto"
+    """How the relief is rendered: its fitted BRDF ('model'), its traced BRDF table ('table') or
+    its geometry; 'auto' takes the cheapest that shows what the camera can resolve."""
 
 
 Vector3 = tuple[float, float, float]
@@ -639,6 +682,9 @@ def resolved_toml(design: Design) -> str:
     dumped = design.model_dump(mode="python")
     dumped["relief"]["pitch_mm"] = design.pitch_mm
     dumped["printer"]["layer_height_mm"] = design.layer_height_mm
+    if design.material.name is not None:
+        # Derived from the named material, not settings: writing them would not load back.
+        del dumped["material"]["refractive_index"], dumped["material"]["body_albedo"]
     data = _to_file_units(dumped)
     header = "# printapp design, resolved: every default filled in. Lengths in mm, angles in degrees.\n"
     return header + tomli_w.dumps(data)

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 import trimesh
 
-from printapp.brdf import brdf_arrays, grey_albedo, npz_bytes
+from printapp.brdf import brdf_arrays, npz_bytes
 from printapp.design import Design, MeshBase, TileBase, load_design, resolved_toml
 from printapp.exporters import OutputFolder, stl_bytes, threemf_bytes
 from printapp.fields import is_tile_field, surface_lic_values
@@ -40,6 +40,7 @@ from printapp.texture import (
     relief_heightfield,
 )
 from render.microfacet import SlopeRoughness, slope_roughness
+from render.mitsuba_adapter import StudioLight
 from slicing import Slices, slice_heightfield, slice_mesh, write_sl1
 from slicing.printed import pixel_centres_mm, printed_heights
 
@@ -161,13 +162,13 @@ def as_printed(design_field: HeightField, slices: Slices, base_thickness_mm: flo
     )
 
 
-def appearance_field(design: Design) -> tuple[HeightField, str]:
+def appearance_field(design: Design, relief: Relief | None = None) -> tuple[HeightField, str]:
     """The relief whose appearance a design predicts, and what it is.
 
     For a tile, what the printer makes of it (sliced and read back); for a mesh or a
     tile with booleans, a flat patch of the designed relief.
     """
-    relief = build_relief(design)
+    relief = relief or build_relief(design)
     if isinstance(design.base, TileBase) and not design.combine:
         patch = relief.patch
         slices = slice_heightfield(
@@ -246,6 +247,12 @@ def verify(
             ("gloss_60", targets.gloss_60, gloss["60"], 1),
             ("gloss_85", targets.gloss_85, gloss["85"], 1),
             ("haze", targets.haze, brdf_metrics["haze"], 1),
+            (
+                "highlight_azimuth_deg",
+                targets.highlight_azimuth_deg,
+                brdf_metrics["highlight"]["azimuth_deg"],
+                1,
+            ),
         ]
     for name, target, value, digits in measures:
         if target is None:
@@ -263,6 +270,14 @@ def verify(
             finite and float(image.min()) >= 0.0 and float(image.std()) > 0.0,
             "preview render is finite, non-negative and not blank",
             "preview render has NaN, negative or constant pixels",
+        )
+        # Energy: a passive surface under the studio light cannot outshine the soft box.
+        brightest = StudioLight().radiance
+        check(
+            finite and float(np.percentile(image, 99.9)) <= 1.05 * brightest,
+            f"preview render is energy-plausible (no more than the soft box's radiance {brightest:g})",
+            f"preview render is brighter than its brightest light ({float(image.max()):.3g} > "
+            f"{brightest:g}): the material returns more light than it receives",
         )
     return passed, failed
 
@@ -302,15 +317,24 @@ def run_design(
 ) -> Outcome:
     """Run a design end to end and write its outputs into ``out_dir``.
 
-    Writes ``model.stl``, ``model.3mf``, ``preview.png``, ``design.resolved.toml`` and
-    ``manifest.json``. When verification fails, the model files are written only with
+    Writes ``model.stl``, ``model.3mf``, ``preview.png``, ``design.resolved.toml``,
+    ``report.html`` and ``manifest.json``. When verification fails, the model files are written only with
     ``force``; everything else is written so that the user can see why.
     """
     from PIL import Image
 
-    from render.mitsuba_adapter import choose_variant, render_resin_mesh, to_srgb8
+    from printapp.rendering import light_sweep, predict_for_design, render_preview
+    from printapp.report import png_bytes, report_html, sweep_settings
+    from render.mitsuba_adapter import choose_variant, to_srgb8
 
     with OutputFolder(out_dir) as out, StageTimer(quiet=quiet) as timer:
+        named_material = None
+        if design.material.name is not None:
+            from printapp.materials import derive_design_material, render_choice
+
+            with timer.stage("material", "material optics (Lorenz-Mie)"):
+                # Every later stage sees the index and body albedo derived from the particles.
+                design, named_material = derive_design_material(design)
         with timer.stage("relief", "relief and printable mesh"):
             relief = build_relief(design)
             if design.combine:
@@ -345,38 +369,23 @@ def run_design(
             sx, sy = (printed.field if printed is not None else relief.patch).slopes()
             appearance = slope_roughness(sx, sy)
         with timer.stage("brdf", "predicted BRDF (ray traced) and compact model"):
-            from render.appearance import predict_appearance
-
             brdf_field = printed.field if printed is not None else relief.patch
-            predicted = predict_appearance(
-                brdf_field.heights_mm,
-                brdf_field.pitch_x_mm,
-                brdf_field.pitch_y_mm,
-                ior=design.material.refractive_index,
-                body_albedo=grey_albedo(design.material.body_albedo),
-                rays=design.brdf.rays,
-                n_theta=design.brdf.theta_bins,
-                n_phi=design.brdf.phi_bins,
-                seed=design.texture.seed,
-                distribution=design.brdf.distribution,
-            )
+            predicted = predict_for_design(design, brdf_field)
         image = None
         choice = None
+        preview = None
+        sweep = None
         if render:
             with timer.stage("render", "path-traced preview (Mitsuba 3)"):
                 choice = choose_variant()
-                r = design.render
-                image = render_resin_mesh(
-                    np.asarray(mesh.vertices),
-                    np.asarray(mesh.faces),
-                    body_albedo=design.material.body_albedo,
-                    refractive_index=design.material.refractive_index,
-                    width_px=r.width_px,
-                    height_px=r.height_px,
-                    spp=r.spp,
-                    seed=design.texture.seed,
-                    elevation_rad=r.elevation_rad,
-                    azimuth_rad=r.azimuth_rad,
+                medium = None
+                if named_material is not None:
+                    medium, _ = render_choice(design, named_material, np.asarray(mesh.vertices))
+                preview = render_preview(design, relief, mesh, predicted, brdf_field, medium=medium)
+                image = preview.image
+            with timer.stage("sweep", "light sweep for the report"):
+                sweep = light_sweep(
+                    design, relief, mesh, predicted, brdf_field, medium=medium, **sweep_settings(design)
                 )
         with timer.stage("verify", "verification"):
             passed, failed = verify(design, solid, appearance, image, predicted.metrics)
@@ -472,10 +481,18 @@ def run_design(
                 "from": "as-printed relief" if printed is not None else "designed relief",
                 **predicted.metrics,
             },
+            "material": None
+            if named_material is None
+            else render_choice(design, named_material, np.asarray(mesh.vertices))[1],
             "render": None
             if image is None or choice is None
             else {
                 "variant": choice.variant,
+                "representation": preview.mode if preview is not None else None,
+                "representation_reason": preview.reason if preview is not None else None,
+                "relief_feature_pixels": round(preview.pixels_per_feature, 4)
+                if preview is not None
+                else None,
                 "spp": design.render.spp,
                 "size_px": [design.render.width_px, design.render.height_px],
                 "mean_linear_rgb": [round(float(v), 6) for v in image.reshape(-1, 3).mean(axis=0)],
@@ -498,8 +515,20 @@ def run_design(
                 "design.resolved.toml",
             )
             if out.path(n).exists()
-        ]
+        ] + ["report.html"]
         manifest["outputs"] = [*staged, "manifest.json"]
+        with timer.stage("report", "report (report.html)"):
+            out.write_text(
+                "report.html",
+                report_html(
+                    design,
+                    manifest,
+                    appearance=predicted,
+                    preview_png=out.path("preview.png").read_bytes() if image is not None else None,
+                    sweep_png=None if sweep is None else png_bytes(to_srgb8(sweep)),
+                ),
+            )
+        manifest["stages_s"] = dict(timer.seconds)
         out.write_text("manifest.json", json.dumps(manifest, indent=2) + "\n")
         written = out.commit(staged + ["manifest.json"])
     return Outcome(

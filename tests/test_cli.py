@@ -49,6 +49,7 @@ def test_demo_writes_every_output(demo_runs):
         "preview.png",
         "brdf.npz",
         "design.resolved.toml",
+        "report.html",
         "manifest.json",
     }
     assert "Traceback" not in first.stderr
@@ -163,7 +164,7 @@ spp = 4
     assert result.returncode == 3
     assert "less than one layer" in result.stderr and "anisotropy" in result.stderr
     names = {p.name for p in out.iterdir()}
-    assert names == {"preview.png", "brdf.npz", "design.resolved.toml", "manifest.json"}
+    assert names == {"preview.png", "brdf.npz", "design.resolved.toml", "report.html", "manifest.json"}
     manifest = json.loads((out / "manifest.json").read_text())
     assert manifest["verification"]["passed"] is False
     assert len(manifest["verification"]["reasons"]) == 2

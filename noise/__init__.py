@@ -16,6 +16,7 @@ from noise.scn import (
     turbulence,
     turbulence_grid,
 )
+from noise.veins import veins, veins_grid
 
 __all__ = [
     "CELL_SEED_MODES",
@@ -27,4 +28,6 @@ __all__ = [
     "sparse_convolution_grid",
     "turbulence",
     "turbulence_grid",
+    "veins",
+    "veins_grid",
 ]

@@ -41,9 +41,9 @@ from typing import Any
 import numpy as np
 from numba import njit, prange
 
-from noise._hash import _mix64, _rnd, seed_key
+from noise._hash import _mix64, seed_key
 from printapp.bench import StageResult
-from render.gonio import _trace
+from render.gonio import _primary_origin, _trace
 
 SIDE = 512
 ANGLES_DEG = (0.0, 60.0, 85.0)
@@ -135,13 +135,7 @@ def _primary_origins(wis, starts, counts, window, px, py, zmax, period_x, period
         wix, wiy, wiz = wis[d_idx, 0], wis[d_idx, 1], wis[d_idx, 2]
         for k in prange(counts[d_idx]):
             ray_key = _mix64(key ^ (np.uint64(d_idx) << np.uint64(40)) ^ np.uint64(k))
-            counter = np.uint64(0)
-            x0 = (window[d_idx, 0] + _rnd(ray_key, counter) * window[d_idx, 1]) * px + wix / wiz * zmax
-            y0 = (
-                window[d_idx, 2] + _rnd(ray_key, counter + np.uint64(1)) * window[d_idx, 3]
-            ) * py + wiy / wiz * zmax
-            x0 -= math.floor(x0 / period_x) * period_x
-            y0 -= math.floor(y0 / period_y) * period_y
+            x0, y0 = _primary_origin(ray_key, window, d_idx, px, py, wix, wiy, wiz, zmax, period_x, period_y)
             row = starts[d_idx] + k
             out[row, 0] = x0
             out[row, 1] = y0

@@ -86,14 +86,9 @@ def heightfield_from_mesh(path: Path, pitch_mm: float | None = None) -> HeightFi
     are then met exactly) over the tile's footprint, one pitch inside its outline. Undercuts are
     not seen: this is the surface a camera and a light straight above would see.
     """
-    import trimesh
+    from printapp.mesh import read_mesh
 
-    try:
-        mesh = trimesh.load(path, force="mesh", process=False)
-    except Exception as exc:
-        raise PrintappError(f"{path}: not a readable mesh ({exc})") from None
-    if len(mesh.faces) == 0:
-        raise PrintappError(f"{path}: the mesh has no triangles")
+    mesh = read_mesh(path)
     vertices = np.ascontiguousarray(mesh.vertices, dtype=np.float64)
     faces = np.ascontiguousarray(mesh.faces, dtype=np.int64)
     up = mesh.face_normals[:, 2] > 0.1

@@ -142,7 +142,7 @@ def texture(
         typer.Option("--from", help="A design or `printapp fit` fragment: its texture table in colour."),
     ] = None,
     width_mm: Annotated[
-        float | None, typer.Option(help="--from: side of the square shown (mm) [the design's tile width].")
+        float | None, typer.Option(help="--from: side of the square shown (mm; default: the tile's width).")
     ] = None,
     size: Annotated[int, typer.Option(min=2, max=8192, help="Image side (pixels).")] = 512,
     cells: Annotated[
@@ -755,8 +755,6 @@ def brdf(
             design_ior = design.material.refractive_index
             design_albedo = grey_albedo(design.material.body_albedo)
         elif suffix in MESH_SUFFIXES:
-            if not source.is_file():
-                raise PrintappError(f"{source}: no such file")
             field, origin = heightfield_from_mesh(source, pitch_mm), "mesh tile's top surface"
         else:
             heights, px, py, _ = _load_corrected(source, width_mm, depth_mm, pitch_mm, False, flatten)
@@ -1015,11 +1013,11 @@ class FitModel(StrEnum):
 def fit(
     image: Annotated[Path, typer.Argument(help="A photo (PNG, JPEG, WebP, TIFF...) of at least 32 x 32 px.")],
     out: Annotated[
-        Path, typer.Option("--out", "-o", help="The design fragment to write (TOML, a [texture] table).")
+        Path, typer.Option("--out", "-o", help="The design fragment to write (TOML, a texture table).")
     ] = Path("fitted.toml"),
     model: Annotated[FitModel, typer.Option(help="Model to fit; auto keeps the best score.")] = FitModel.auto,
     scale_mm_per_px: Annotated[
-        float | None, typer.Option(help="Millimetres per photo pixel [the photo's width spans 20 mm].")
+        float | None, typer.Option(help="Millimetres per photo pixel (default: the photo is 20 mm wide).")
     ] = None,
     preview: Annotated[
         Path | None, typer.Option(help="Write the photo and the synthesis side by side (.png).")

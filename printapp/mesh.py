@@ -73,6 +73,26 @@ def check_solid(mesh: trimesh.Trimesh) -> SolidCheck:
     )
 
 
+def read_mesh(path: str | Path, *, merge: bool = False) -> trimesh.Trimesh:
+    """Read a triangle mesh file (any format trimesh reads), as it is or with duplicate vertices merged.
+
+    Raises
+    ------
+    DesignError
+        If the file is missing, unreadable or holds no triangles.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise DesignError(f"{path}: no such mesh file")
+    try:
+        loaded = trimesh.load(path, force="mesh", process=merge)
+    except Exception as exc:  # trimesh raises many kinds for malformed files
+        raise DesignError(f"{path}: cannot read the mesh ({type(exc).__name__}: {exc})") from None
+    if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
+        raise DesignError(f"{path}: expected a triangle mesh, found no triangles")
+    return loaded
+
+
 def load_closed_mesh(path: str | Path, scale: float = 1.0, repair: bool = False) -> trimesh.Trimesh:
     """Read a mesh file, merge duplicate vertices, scale it to mm, and insist that it is closed.
 
@@ -84,15 +104,7 @@ def load_closed_mesh(path: str | Path, scale: float = 1.0, repair: bool = False)
     DesignError
         If the file is missing, unreadable, empty, or not a closed surface.
     """
-    path = Path(path)
-    if not path.is_file():
-        raise DesignError(f"{path}: no such mesh file")
-    try:
-        loaded = trimesh.load(path, force="mesh", process=True)
-    except Exception as exc:  # trimesh raises many kinds for malformed files
-        raise DesignError(f"{path}: cannot read the mesh ({type(exc).__name__}: {exc})") from None
-    if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
-        raise DesignError(f"{path}: expected a triangle mesh, found no triangles")
+    loaded = read_mesh(path, merge=True)
     mesh = trimesh.Trimesh(vertices=loaded.vertices * scale, faces=loaded.faces, process=False)
     if repair and not (mesh.is_watertight and mesh.is_winding_consistent):
         import pymeshfix

@@ -170,17 +170,22 @@ def appearance_field(design: Design, relief: Relief | None = None) -> tuple[Heig
     """
     relief = relief or build_relief(design)
     if isinstance(design.base, TileBase) and not design.combine:
-        patch = relief.patch
-        slices = slice_heightfield(
-            patch.heights_mm,
-            patch.pitch_x_mm,
-            patch.pitch_y_mm,
-            design.base.thickness_mm,
-            design.printer.profile,
-            layer_height_mm=design.layer_height_mm,
-        )
-        return as_printed(patch, slices, design.base.thickness_mm).field, "as-printed relief"
+        slices = slice_tile(design, relief.patch)
+        return as_printed(relief.patch, slices, design.base.thickness_mm).field, "as-printed relief"
     return relief.patch, "designed relief"
+
+
+def slice_tile(design: Design, patch: HeightField) -> Slices:
+    """A tile's layers straight from its height field: the same layers as slicing the slab, no mesh."""
+    assert isinstance(design.base, TileBase)
+    return slice_heightfield(
+        patch.heights_mm,
+        patch.pitch_x_mm,
+        patch.pitch_y_mm,
+        design.base.thickness_mm,
+        design.printer.profile,
+        layer_height_mm=design.layer_height_mm,
+    )
 
 
 def fits_printer(design: Design, solid: SolidCheck) -> bool:
@@ -347,16 +352,7 @@ def run_design(
             with timer.stage("slice", "slicing for the printer"):
                 profile_ = design.printer.profile
                 if isinstance(design.base, TileBase) and not design.combine:
-                    # Straight from the height field: the same layers as slicing the slab, no mesh.
-                    patch = relief.patch
-                    slices = slice_heightfield(
-                        patch.heights_mm,
-                        patch.pitch_x_mm,
-                        patch.pitch_y_mm,
-                        design.base.thickness_mm,
-                        profile_,
-                        layer_height_mm=design.layer_height_mm,
-                    )
+                    slices = slice_tile(design, relief.patch)
                 else:
                     slices = slice_mesh(
                         mesh.vertices, mesh.faces, profile_, layer_height_mm=design.layer_height_mm

@@ -8,8 +8,6 @@ from pathlib import Path
 
 import numpy as np
 
-from printapp.errors import PrintappError
-
 
 def quick_view(path: Path, out: Path, width_px: int = 800, height_px: int = 600) -> int:
     """Render ``path`` shaded, from above at an angle, into ``out`` (PNG); returns the triangle count.
@@ -17,16 +15,9 @@ def quick_view(path: Path, out: Path, width_px: int = 800, height_px: int = 600)
     pyvista draws off screen (OSMesa or EGL where there is no display); the image is
     written under a temporary name and renamed.
     """
-    import trimesh
+    from printapp.mesh import read_mesh
 
-    if not path.is_file():
-        raise PrintappError(f"{path}: no such file")
-    try:
-        mesh = trimesh.load(path, force="mesh", process=False)
-    except Exception as exc:
-        raise PrintappError(f"{path}: not a readable mesh ({exc})") from None
-    if len(mesh.faces) == 0:
-        raise PrintappError(f"{path}: the mesh has no triangles")
+    mesh = read_mesh(path)
     os.environ.setdefault("PYVISTA_OFF_SCREEN", "true")
     import pyvista as pv
     import vtk

@@ -205,6 +205,32 @@ def _roulette(w: float, u: float) -> float:
 
 
 @njit(cache=True, inline="always")
+def _push(
+    st_o, st_d, st_w, st_cell, st_depth, st_spec, top, ox, oy, oz, dx, dy, dz, w, ci, cj, tri, depth, spec
+):
+    st_o[top, 0], st_o[top, 1], st_o[top, 2] = ox, oy, oz
+    st_d[top, 0], st_d[top, 1], st_d[top, 2] = dx, dy, dz
+    st_w[top] = w
+    st_cell[top, 0], st_cell[top, 1], st_cell[top, 2] = ci, cj, tri
+    st_depth[top] = depth
+    st_spec[top] = spec
+
+
+@njit(cache=True, inline="always")
+def _primary_origin(ray_key, window, d_idx, px, py, wix, wiy, wiz, zmax, period_x, period_y):
+    """Where primary ray ``ray_key`` starts (at z = zmax), from the first two numbers of its stream.
+
+    Uniform over the lit window on the mean plane z = 0, moved up along the ray to zmax
+    and wrapped into the tile.
+    """
+    x0 = (window[d_idx, 0] + _rnd(ray_key, np.uint64(0)) * window[d_idx, 1]) * px + wix / wiz * zmax
+    y0 = (window[d_idx, 2] + _rnd(ray_key, np.uint64(1)) * window[d_idx, 3]) * py + wiy / wiz * zmax
+    x0 -= math.floor(x0 / period_x) * period_x
+    y0 -= math.floor(y0 / period_y) * period_y
+    return x0, y0
+
+
+@njit(cache=True, inline="always")
 def _deposit(local_bin, local_all, local_spec, n_local, acc_all, sq_all, acc_spec, sq_spec, c, b, w, spec):
     for k in range(n_local):
         if local_bin[k] == b:
@@ -278,15 +304,8 @@ def _gonio(
         wix, wiy, wiz = wis[d_idx, 0], wis[d_idx, 1], wis[d_idx, 2]
         for k in range(k0, k1):
             ray_key = _mix64(key ^ (np.uint64(d_idx) << np.uint64(40)) ^ np.uint64(k))
-            counter = np.uint64(0)
-            # Uniform over the lit window on the mean plane z = 0, started at z = zmax.
-            x0 = (window[d_idx, 0] + _rnd(ray_key, counter) * window[d_idx, 1]) * px + wix / wiz * zmax
-            y0 = (
-                window[d_idx, 2] + _rnd(ray_key, counter + np.uint64(1)) * window[d_idx, 3]
-            ) * py + wiy / wiz * zmax
-            x0 -= math.floor(x0 / period_x) * period_x
-            y0 -= math.floor(y0 / period_y) * period_y
-            counter += np.uint64(2)
+            x0, y0 = _primary_origin(ray_key, window, d_idx, px, py, wix, wiy, wiz, zmax, period_x, period_y)
+            counter = np.uint64(2)  # the stream's first two numbers placed the ray
             st_o[0, 0], st_o[0, 1], st_o[0, 2] = x0, y0, zmax
             st_d[0, 0], st_d[0, 1], st_d[0, 2] = -wix, -wiy, -wiz
             st_w[0] = 1.0
@@ -388,14 +407,9 @@ def _gonio(
                         wr = _roulette(wr, _rnd(ray_key, counter))
                         counter += np.uint64(1)
                     if wr > 0.0 and top < _STACK:
-                        st_o[top, 0], st_o[top, 1], st_o[top, 2] = hx, hy, hz
-                        st_d[top, 0] = dx + 2.0 * cos_i * nx
-                        st_d[top, 1] = dy + 2.0 * cos_i * ny
-                        st_d[top, 2] = dz + 2.0 * cos_i * nz
-                        st_w[top] = wr
-                        st_cell[top, 0], st_cell[top, 1], st_cell[top, 2] = ci, cj, tri
-                        st_depth[top] = depth + 1
-                        st_spec[top] = spec
+                        _push(st_o, st_d, st_w, st_cell, st_depth, st_spec, top, hx, hy, hz,
+                              dx + 2.0 * cos_i * nx, dy + 2.0 * cos_i * ny, dz + 2.0 * cos_i * nz,
+                              wr, ci, cj, tri, depth + 1, spec)  # fmt: skip
                         top += 1
                     elif wr > 0.0:
                         scalars[job, 4] += wr
@@ -421,12 +435,8 @@ def _gonio(
                         wd = _roulette(wd, _rnd(ray_key, counter))
                         counter += np.uint64(1)
                     if wd > 0.0 and top < _STACK:
-                        st_o[top, 0], st_o[top, 1], st_o[top, 2] = hx, hy, hz
-                        st_d[top, 0], st_d[top, 1], st_d[top, 2] = ddx, ddy, ddz
-                        st_w[top] = wd
-                        st_cell[top, 0], st_cell[top, 1], st_cell[top, 2] = ci, cj, tri
-                        st_depth[top] = depth + 1
-                        st_spec[top] = False
+                        _push(st_o, st_d, st_w, st_cell, st_depth, st_spec, top, hx, hy, hz,
+                              ddx, ddy, ddz, wd, ci, cj, tri, depth + 1, False)  # fmt: skip
                         top += 1
                     elif wd > 0.0:
                         scalars[job, 4] += wd

@@ -188,3 +188,39 @@ def test_compact_surface_renders_like_mitsubas_roughplastic_where_they_are_the_s
     )
     mask = object_mask(ours.shape)
     assert ours[mask].mean() == pytest.approx(theirs[mask].mean(), rel=0.05)
+
+
+@pytest.mark.parametrize(
+    ("params", "wi"),
+    [
+        ({"distribution": "ggx", "alpha_u": 0.3, "alpha_v": 0.1, "azimuth": 0.5}, (0.0, 0.0, 1.0)),
+        (
+            {
+                "distribution": "beckmann",
+                "alpha_u": 0.2,
+                "alpha_v": 0.4,
+                "azimuth": 1.0,
+                "spike_weight": 0.5,
+                "spike_alpha": 0.05,
+            },  # fmt: skip
+            (0.6, 0.2, math.sqrt(1 - 0.4)),
+        ),
+    ],
+)
+def test_compact_bsdf_samples_the_density_it_reports(params, wi):
+    # Mitsuba's own chi-square test of a BSDF's sample() against its pdf().
+    choose_variant()
+    from mitsuba.chi2 import BSDFAdapter, ChiSquareTest, SphericalDomain
+
+    from render.mitsuba_adapter import surface_bsdf
+
+    surface_bsdf(CompactSurface("ggx", 0.1, 0.1, 0.0, 1.5, (0.5, 0.5, 0.5)))  # registers the plugin
+    plugin = {
+        "type": "printapp_compact",
+        "ior": 1.5,
+        "body": {"type": "rgb", "value": [0.5, 0.5, 0.5]},
+        **params,
+    }
+    sample, pdf = BSDFAdapter("printapp_compact", plugin, wi=list(wi))
+    test = ChiSquareTest(domain=SphericalDomain(), sample_func=sample, pdf_func=pdf, sample_dim=3, seed=3)
+    assert test.run()

@@ -202,7 +202,7 @@ def test_compact_surface_renders_like_mitsubas_roughplastic_where_they_are_the_s
                 "azimuth": 1.0,
                 "spike_weight": 0.5,
                 "spike_alpha": 0.05,
-            },  # fmt: skip
+            },
             (0.6, 0.2, math.sqrt(1 - 0.4)),
         ),
     ],

@@ -83,13 +83,19 @@ def _trace(
     t = 0.0
     level = 0
     steps = 0
+    # Reciprocals once per ray: the loop below multiplies instead of dividing.
+    inv_dx = 1.0 / dx if dx != 0.0 else 0.0
+    inv_dy = 1.0 / dy if dy != 0.0 else 0.0
+    inv_px = 1.0 / px
+    inv_py = 1.0 / py
     while steps < _MAX_STEPS:
         steps += 1
         z = oz + t * dz
         if dz >= 0.0 and z >= zmax:
             return 0, t, 0.0, 0.0, 0.0, ci, cj, -1, steps
-        wi_ = ci % nx_
-        wj_ = cj % ny_
+        # Most steps stay in the base tile, where wrapping needs no division.
+        wi_ = ci if 0 <= ci < nx_ else ci % nx_
+        wj_ = cj if 0 <= cj < ny_ else cj % ny_
         size = 1 << level
         bi = wi_ >> level
         bj = wj_ >> level
@@ -98,15 +104,15 @@ def _trace(
         ya = cj - wj_ + bj * size
         yb = cj - wj_ + min((bj + 1) * size, ny_)
         if dx > 0.0:
-            tx = (xb * px - ox) / dx
+            tx = (xb * px - ox) * inv_dx
         elif dx < 0.0:
-            tx = (xa * px - ox) / dx
+            tx = (xa * px - ox) * inv_dx
         else:
             tx = _INF
         if dy > 0.0:
-            ty = (yb * py - oy) / dy
+            ty = (yb * py - oy) * inv_dy
         elif dy < 0.0:
-            ty = (ya * py - oy) / dy
+            ty = (ya * py - oy) * inv_dy
         else:
             ty = _INF
         t_exit = min(tx, ty)
@@ -126,16 +132,16 @@ def _trace(
             continue
         if not skip:
             # Level 0: the cell (ci, cj). u, v are cell-local coordinates in [0, 1].
-            c1 = (wi_ + 1) % nx_
-            r1 = (wj_ + 1) % ny_
+            c1 = wi_ + 1 if wi_ + 1 < nx_ else 0
+            r1 = wj_ + 1 if wj_ + 1 < ny_ else 0
             h00 = h[wj_, wi_]
             h10 = h[wj_, c1]
             h01 = h[r1, wi_]
             h11 = h[r1, c1]
-            u0 = (ox - ci * px) / px
-            v0 = (oy - cj * py) / py
-            du = dx / px
-            dv = dy / py
+            u0 = (ox - ci * px) * inv_px
+            v0 = (oy - cj * py) * inv_py
+            du = dx * inv_px
+            dv = dy * inv_py
             ta = t
             t_diag = _INF
             if du != dv:

@@ -88,6 +88,17 @@ def _run(design_path: Path | None, out_dir: Path, force: bool, quiet: bool) -> N
         f"predicted appearance: roughness {a['roughness']}, anisotropy {a['anisotropy']}, "
         f"highlight along {a['highlight_azimuth_deg']} deg"
     )
+    b = m.get("brdf")
+    if b:
+        gloss = b["gloss_gu"]
+        _out.print(
+            f"predicted gloss {gloss['20']:.1f} / {gloss['60']:.1f} / {gloss['85']:.1f} GU at 20/60/85 deg, "
+            f"haze {b['haze']:.1f}; fitted {b['fit']['distribution']} model within "
+            f"{b['fit']['relative_error']:.0%} of the traced BRDF"
+        )
+    rendered = m.get("render")
+    if rendered:
+        _out.print(f"preview rendered as {rendered['representation']}: {rendered['representation_reason']}")
     for path in outcome.written:
         _out.print(f"  wrote {path}")
     if not outcome.passed:

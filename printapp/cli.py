@@ -37,6 +37,10 @@ ForceOption = Annotated[
 ]
 
 
+def _percent(value: float | None) -> str:
+    return "n/a (too few rays)" if value is None else f"{value:.1%}"
+
+
 def _fail(exc: PrintappError) -> typer.Exit:
     _err.print(f"[bold red]error:[/] {exc}", markup=True, highlight=False)
     return typer.Exit(exc.exit_code)
@@ -94,7 +98,8 @@ def _run(design_path: Path | None, out_dir: Path, force: bool, quiet: bool) -> N
         _out.print(
             f"predicted gloss {gloss['20']:.1f} / {gloss['60']:.1f} / {gloss['85']:.1f} GU at 20/60/85 deg, "
             f"haze {b['haze']:.1f}; fitted {b['fit']['distribution']} model within "
-            f"{b['fit']['relative_error']:.0%} of the traced BRDF"
+            f"{_percent(b['fit']['relative_error'])} of the traced BRDF "
+            f"(table noise {_percent(b['fit']['table_noise'])})"
         )
     rendered = m.get("render")
     if rendered:
@@ -815,7 +820,8 @@ def brdf(
     _out.print(
         f"fitted {fit['distribution']}: alpha {fit['alpha_u']:.3g} x {fit['alpha_v']:.3g} along "
         f"{fit['azimuth_deg']:.0f} deg{spike}, body albedo {fit['body_albedo']:.3f}; relative error "
-        f"{fit['relative_error']:.1%} over {fit['bins']} bins"
+        f"{_percent(fit['relative_error'])} over {fit['bins']} bins (the table's own noise there: "
+        f"{_percent(fit['table_noise'])})"
     )
     for path in (out, plot, json_out):
         if path is not None:

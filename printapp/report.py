@@ -455,6 +455,10 @@ def report_html(
                     ("lobe azimuth", f"{fit.get('azimuth_deg', float('nan')):.1f}°"),
                     ("body albedo", f"{fit.get('body_albedo', float('nan')):.3f}"),
                     ("fit relative error", "n/a" if rel is None else f"{100.0 * rel:.1f} %"),
+                    (
+                        "the table's own noise on those bins",
+                        "n/a" if fit.get("table_noise") is None else f"{100.0 * fit['table_noise']:.1f} %",
+                    ),
                     ("rays per incident direction", b.get("rays_per_direction")),
                     ("traced from", b.get("from")),
                 ]

@@ -39,6 +39,11 @@ DEFAULT_INCIDENT_DEG = (
 """Incident (theta, phi) in degrees of the default table: a sweep in the xz plane and two across it."""
 
 
+def _finite(value: float, digits: int = 5) -> float | None:
+    """Rounded, or None where undefined (JSON has no NaN)."""
+    return round(value, digits) if math.isfinite(value) else None
+
+
 def gloss_units(aperture_fraction: np.ndarray | float, theta_deg: np.ndarray | float) -> np.ndarray:
     """Specular gloss (GU): aperture reflectance relative to black glass (n = 1.567) at the same angle."""
     reference = fresnel_dielectric(np.cos(np.radians(theta_deg)), BLACK_GLASS_INDEX)
@@ -177,7 +182,12 @@ def predict_appearance(
             "anisotropy": round(alpha_long / alpha_short, 4),
             "azimuth_deg": round(math.degrees(azimuth), 3),
         },
-        "fit": {**fit.model.as_dict(), "relative_error": round(fit.relative_error, 5), "bins": fit.bins_used},
+        "fit": {
+            **fit.model.as_dict(),
+            "relative_error": _finite(fit.relative_error),
+            "table_noise": _finite(fit.table_noise),
+            "bins": fit.bins_used,
+        },
         "rays_per_direction": int(rays),
         "lost_fraction": float(np.max(np.concatenate([table.lost, gloss_table.lost]))),
     }

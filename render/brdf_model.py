@@ -29,7 +29,7 @@ adds it only where it explains the table markedly better.
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 from scipy.special import erf
@@ -284,6 +284,8 @@ class FitResult:
     relative_error: float
     """Energy-weighted RMS relative error over the bins that carry energy (noise removed)."""
     bins_used: int
+    table_noise: float = math.nan
+    """The table's own RMS relative noise over the same bins: errors below it cannot be seen."""
 
 
 def _sub_directions(theta_edges, phi_edges, it: np.ndarray, ip: np.ndarray, sub: int) -> np.ndarray:
@@ -330,6 +332,17 @@ def relative_error(
     e = energy[mask]
     value = np.sum(e * diff2 / f_table[mask] ** 2) / np.sum(e)
     return float(math.sqrt(max(value, 0.0))), int(mask.sum())
+
+
+def table_noise(f_table: np.ndarray, omega: np.ndarray, stderr: np.ndarray, floor: float = 1e-4) -> float:
+    """Energy-weighted RMS relative standard error of the bins :func:`relative_error` uses."""
+    energy = f_table * omega
+    total = energy.sum(axis=(-2, -1), keepdims=True)
+    mask = (energy > floor * np.maximum(total, 1e-300)) & (stderr <= 0.25 * f_table)
+    if not np.any(mask):
+        return math.nan
+    e = energy[mask]
+    return float(math.sqrt(np.sum(e * (stderr[mask] / f_table[mask]) ** 2) / np.sum(e)))
 
 
 def _relative_error_merged(
@@ -609,7 +622,9 @@ def fit_microfacet(
         err, used = _relative_error_merged(f_model, f_table, omega, stderr, grown)
         return FitResult(model, err, used), err
 
+    noise = table_noise(f_table, omega, stderr) if stderr is not None else math.nan
     single, single_pooled = fit_lobes(lobe_alpha(f_specular[normal], theta_edges, phi_edges), spike=False)
+    single = replace(single, table_noise=noise)
     if not allow_spike:
         return single
     # The broad lobe's moments without the mirror bins.
@@ -619,5 +634,5 @@ def fit_microfacet(
     two, two_pooled = fit_lobes((max(au0, width), max(av0, width), az0), spike=True)
     # Both judged with the mirror bins pooled, where the spike is all that differs.
     if two.model.spike_weight > 0.005 and two_pooled < 0.75 * single_pooled:
-        return two
+        return replace(two, table_noise=noise)
     return single

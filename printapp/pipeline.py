@@ -276,11 +276,11 @@ def verify(
             "preview render is finite, non-negative and not blank",
             "preview render has NaN, negative or constant pixels",
         )
-        # Energy: a passive surface under the studio light cannot outshine the soft box.
-        brightest = StudioLight().radiance
+        # Energy: a passive surface under the studio lights cannot outshine the brightest one.
+        brightest = StudioLight().brightest
         check(
             finite and float(np.percentile(image, 99.9)) <= 1.05 * brightest,
-            f"preview render is energy-plausible (no more than the soft box's radiance {brightest:g})",
+            f"preview render is energy-plausible (no more than the brightest light's radiance {brightest:g})",
             f"preview render is brighter than its brightest light ({float(image.max()):.3g} > "
             f"{brightest:g}): the material returns more light than it receives",
         )

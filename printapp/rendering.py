@@ -192,7 +192,8 @@ def light_sweep(
     strip = []
     tables: dict[str, Any] = {}
     for azimuth in sweep_azimuths_rad(design.render.azimuth_rad, frames):
-        light = replace(StudioLight(), azimuth_rad=azimuth)
+        # Only the soft box moves; the fixed spot would only confuse the sweep.
+        light = replace(StudioLight(), azimuth_rad=azimuth, highlight_radiance=0.0)
         strip.append(
             render_preview(
                 small, relief, mesh, predicted, appearance_field, medium=medium, light=light, tables=tables

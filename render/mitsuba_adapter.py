@@ -138,9 +138,12 @@ def choose_variant(
 
 @dataclass(frozen=True)
 class StudioLight:
-    """A soft box (rectangular area light) over a dim uniform environment.
+    """A soft box (large rectangular area light), a small spot light for crisp highlights, and a dim
+    uniform environment.
 
-    Directions in radians; the soft box is aimed at the object's centre.
+    Directions in radians; both lights are aimed at the object's centre. The soft box shows
+    a surface's overall gloss; the small light's reflection shows the highlight's shape
+    (how sharp, which way it is stretched), which a large light blurs.
     """
 
     azimuth_rad: float = math.radians(60.0)
@@ -148,6 +151,15 @@ class StudioLight:
     radiance: float = 12.0
     size_factor: float = 1.5
     environment: float = 0.15
+    highlight_azimuth_rad: float = math.radians(-150.0)
+    highlight_elevation_rad: float = math.radians(55.0)
+    highlight_radiance: float = 60.0
+    highlight_size_factor: float = 0.12
+
+    @property
+    def brightest(self) -> float:
+        """The largest radiance in the scene: no passive surface can look brighter."""
+        return max(self.radiance, self.highlight_radiance, self.environment)
 
 
 MEDIUM_MAX_DEPTH = 1024
@@ -359,6 +371,19 @@ def render_resin_mesh(
             "to_world": T().look_at(origin=lamp, target=[float(c) for c in centre], up=[0.0, 0.0, 1.0])
             @ T().scale([box_size, box_size, 1.0]),
             "emitter": {"type": "area", "radiance": {"type": "rgb", "value": [light.radiance] * 3}},
+        }
+    if light.highlight_radiance > 0.0:
+        spot = on_sphere(
+            light.highlight_azimuth_rad,
+            light.highlight_elevation_rad,
+            (2.0 * radius + distance / distance_scale / 2.0) * distance_scale,
+        )
+        spot_size = light.highlight_size_factor * radius * distance_scale
+        scene_dict["spot"] = {
+            "type": "rectangle",
+            "to_world": T().look_at(origin=spot, target=[float(c) for c in centre], up=[0.0, 0.0, 1.0])
+            @ T().scale([spot_size, spot_size, 1.0]),
+            "emitter": {"type": "area", "radiance": {"type": "rgb", "value": [light.highlight_radiance] * 3}},
         }
     if coverage:
         # Which pixels see the mesh: the distance to the first hit through each pixel's centre.

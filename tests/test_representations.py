@@ -21,7 +21,7 @@ from render.mitsuba_adapter import (
 )
 from render.representation import Choice, body_tint, choose_representation, compact_surface
 
-UNIFORM = StudioLight(radiance=0.0, environment=1.0)  # only a uniform white environment
+UNIFORM = StudioLight(radiance=0.0, environment=1.0, highlight_radiance=0.0)  # a uniform white world
 
 
 def render(

@@ -34,9 +34,10 @@ GEOMETRY_FROM_FEATURES_PER_PIXEL = 1.5
 """Render geometry where one relief feature spans at least this many pixels.
 
 From ``printapp bench render`` (docs/benchmarks.md, "render"): on its test tile the
-compact model's image error against the geometry reference (noise taken off) is 3.3 % at
-1.1 pixels per feature and 7.1 % at 2.2; 5 % falls at about 1.5. Below that, the pixels
-average the relief into its BRDF; above it, the camera sees the features themselves."""
+compact model's image error against the geometry reference (noise taken off) is 3.9 % at
+1.1 pixels per feature and 6.8 % at 2.2 (3.3 % and 7.1 % under the soft box alone); 5 %
+falls at about 1.5. Below that, the pixels average the relief into its BRDF; above it,
+the camera sees the features themselves."""
 
 MODEL_TOLERANCE = 0.15
 """Largest relative fit error at which the compact model may stand in for the table."""

@@ -392,9 +392,9 @@ def report_html(
     add('<h2 id="preview">Preview</h2>')
     add(
         '<p class="explain">A physically based render (Mitsuba 3 path tracing) of the model in its resin '
-        "under a soft box. The printed relief is drawn in the cheapest way the camera cannot tell from the "
-        "real thing: as geometry where its features span pixels, or as its predicted BRDF (the fitted model "
-        "or the traced table) where they are smaller than a pixel.</p>"
+        "under a soft box and a small spot light. The printed relief is drawn in the cheapest way the "
+        "camera cannot tell from the real thing: as geometry where its features span pixels, or as its "
+        "predicted BRDF (the fitted model or the traced table) where they are smaller than a pixel.</p>"
     )
     if r:
         add(

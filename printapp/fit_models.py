@@ -37,6 +37,7 @@ analysed resolution with the exact noise. Everything is seeded: a fit is determi
 from __future__ import annotations
 
 import math
+from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -353,7 +354,7 @@ SKEW = Param("skew", -3.0, 3.0)
 """The luminance curve's skew (:class:`ValueMap`), searched with every model."""
 
 
-class Model:
+class Model(ABC):
     """A noise model: its searched parameters, its discrete choices and its scalar field."""
 
     name = ""
@@ -365,8 +366,9 @@ class Model:
         # (about 0.3 / F cycles per pixel) below the lowest frequency the image resolves.
         self.feature = Param("feature_px", 2.0 * max(1.0, side / OBJECTIVE_SIDE), side / 4.0, log=True)
 
+    @abstractmethod
     def params(self) -> list[Param]:
-        raise NotImplementedError
+        """The continuous parameters the optimiser searches, each mapped to [0, 1]."""
 
     def decode(self, u: np.ndarray, choice: dict[str, Any]) -> dict[str, Any]:
         """Parameter values from unit-box coordinates ``u`` and a discrete choice.
@@ -383,12 +385,13 @@ class Model:
     def encode(self, values: dict[str, Any]) -> np.ndarray:
         return np.array([p.unit(values[p.name]) for p in self.params()])
 
+    @abstractmethod
     def choices(self) -> list[dict[str, Any]]:
         """The discrete settings the scan tries (octave counts, signs)."""
-        raise NotImplementedError
 
+    @abstractmethod
     def field(self, values: dict[str, Any], grid: Grid, octave_noise) -> np.ndarray:
-        raise NotImplementedError
+        """The model's scalar field on ``grid`` for parameter ``values``."""
 
     def max_octaves(self, values: dict[str, Any], pitch_px: float) -> int:
         return kept_octaves(MAX_OCTAVES, values.get("lacunarity", 2.0), values["feature_px"], pitch_px)

@@ -663,9 +663,6 @@ def _register_plugins() -> None:
             weight = (mi.Spectrum(value) + self.body_factor * body) / dr.maximum(pdf, 1e-12)
             return bs, dr.select(ok, weight, 0.0)
 
-        def traverse(self, callback):
-            pass
-
         def to_string(self):
             return f"CompactResin[alpha = ({self.alpha_u}, {self.alpha_v}), spike = {self.spike_weight}]"
 
@@ -769,9 +766,6 @@ def _register_plugins() -> None:
             spec, body = self._lookup(si.wi, wo)
             weight = (mi.Spectrum(spec) + self.tint * body) * dr.pi  # f cos / (cos / pi)
             return bs, dr.select(ok, weight, 0.0)
-
-        def traverse(self, callback):
-            pass
 
         def to_string(self):
             return f"TabulatedBRDF[{self.n_ti} x {self.n_pi} incident, {self.n_to} x {self.n_po} outgoing]"

@@ -176,19 +176,7 @@ def _stability(miepython: Any) -> list[dict[str, Any]]:
                 }
             )
     x = 1000.0
-    longer = mie._n_terms(x) + 60
-    a = np.zeros(longer + 2, complex)
-    b = np.zeros(longer + 2, complex)
-    mie._ab_clear(
-        1.33 + 0j,
-        x,
-        a[:longer],
-        b[:longer],
-        np.zeros(longer),
-        np.zeros(longer + 2, complex),
-        np.zeros(longer + 2),
-    )
-    converged = abs(mie._sums(a, b, longer)[1]) ** 2 / x**2
+    converged = mie.back_efficiency_longer_series(1.33, x, 60)
     theirs = peer(1.33, x)
     rows.append(
         {

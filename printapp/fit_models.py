@@ -652,38 +652,47 @@ def _fit_by_synthesis(
     if lookup is None:
         lookup = NoiseLookup(lookup_extent(lum.shape), seed)
     params = model.params()
-    count = 0
-    best: tuple[float, Any, Any] = (math.inf, None, None)
-    trace: list[tuple[int, float]] = []
 
-    def evaluate(u: np.ndarray, choice: dict[str, Any]) -> float:
-        nonlocal count, best
-        count += 1
+    def objective(u: np.ndarray, choice: dict[str, Any]) -> float:
         values = model.decode(u, choice)
         value = 0.0
         for scale in scales:
             s = model.field(values, scale.grid, lookup)
             lum_synth = ValueMap.fit(s, scale.target, values["sign"], values.get("skew", 0.0))(s)
             value += objective_value(distances(lum_synth, scale.target), scale.target)
-        if value < best[0]:
-            best = (value, np.array(u, dtype=float), dict(choice))
-            trace.append((count, value))
         return value
 
+    best = _BestSoFar(objective)
     choices = model.choices()
     n_scan = max(4, budget // (2 * len(choices)))
-    _scan_then_simplex(
-        evaluate,
-        len(params),
-        choices,
-        n_scan,
-        budget - n_scan * len(choices),
-        seed,
-    )
-    value, u, choice = best
+    _scan_then_simplex(best, len(params), choices, n_scan, budget - n_scan * len(choices), seed)
     return ModelFit(
-        model=model, values=model.decode(u, choice), objective=value, evaluations=count, trace=trace
+        model=model,
+        values=model.decode(best.u, best.choice),
+        objective=best.value,
+        evaluations=best.count,
+        trace=best.trace,
     )
+
+
+class _BestSoFar:
+    """An objective ``f(u, choice)`` that counts its calls and keeps its best point and improvements."""
+
+    def __init__(self, objective: Callable[[np.ndarray, dict[str, Any]], float]) -> None:
+        self.objective = objective
+        self.count = 0
+        self.value = math.inf
+        self.u: np.ndarray | None = None
+        self.choice: dict[str, Any] = {}
+        self.trace: list[tuple[int, float]] = []
+
+    def __call__(self, u: np.ndarray, choice: dict[str, Any]) -> float:
+        self.count += 1
+        value = self.objective(u, choice)
+        if value < self.value:
+            self.value, self.u, self.choice = value, np.array(u, dtype=float), dict(choice)
+            self.trace.append((self.count, value))
+        return value
 
 
 class SpectralFit:
@@ -770,20 +779,13 @@ def _fit_by_spectrum(name: str, lum: np.ndarray, target: Target, *, seed: int, b
     assert isinstance(model, _OctaveModel)
     spectral = SpectralFit(lum)
     params = [p for p in model.params() if p is not SKEW]
-    count = 0
-    best: tuple[float, Any, Any] = (math.inf, None, None)
-    trace: list[tuple[int, float]] = []
 
-    def evaluate(u: np.ndarray, choice: dict[str, Any]) -> float:
-        nonlocal count, best
-        count += 1
+    def objective(u: np.ndarray, choice: dict[str, Any]) -> float:
         values = {p.name: p.value(float(x)) for p, x in zip(params, u, strict=True)}
         values["octaves"] = max(1, model.max_octaves(values, 1.0) - choice["drop"])
-        value = spectral.distance(model, values)
-        if value < best[0]:
-            best = (value, np.array(u, dtype=float), dict(choice))
-            trace.append((count, value))
-        return value
+        return spectral.distance(model, values)
+
+    best = _BestSoFar(objective)
 
     # An evaluation costs about 50 us: a full grid over the box for every octave count
     # (features x H x lacunarity for fBm), then Nelder-Mead from each count's best point.
@@ -791,14 +793,13 @@ def _fit_by_spectrum(name: str, lum: np.ndarray, target: Target, *, seed: int, b
         choices, grid = [{"drop": d} for d in range(5)], [16, 10, 7]
     else:
         choices, grid = [{"drop": d} for d in range(MAX_OCTAVES)], [48]
-    _scan_then_simplex(evaluate, len(params), choices, 0, 4 * budget, seed, per_choice=True, grid=grid)
-    spectrum_value, u, choice = best
-    values = {p.name: p.value(float(x)) for p, x in zip(params, u, strict=True)}
-    values["octaves"] = max(1, model.max_octaves(values, 1.0) - choice["drop"])
+    _scan_then_simplex(best, len(params), choices, 0, 4 * budget, seed, per_choice=True, grid=grid)
+    values = {p.name: p.value(float(x)) for p, x in zip(params, best.u, strict=True)}
+    values["octaves"] = max(1, model.max_octaves(values, 1.0) - best.choice["drop"])
     s = model.field({**values, "sign": 1.0}, Grid.of(lum.shape, lum.shape), exact_noise(seed))
     sign, skew, value_cost = fit_value_map(s, target, skewed=True)
     values |= {"sign": sign, "skew": skew}
-    return ModelFit(model, values, spectrum_value + value_cost, count, trace)
+    return ModelFit(model, values, best.value + value_cost, best.count, best.trace)
 
 
 def fit_model(

@@ -478,6 +478,24 @@ def _prepare(m, x, n_med) -> tuple[np.ndarray, np.ndarray, np.ndarray, tuple[int
     )
 
 
+def back_efficiency_longer_series(m: complex, x: float, extra_terms: int = 60) -> float:
+    """``Q_back`` of one non-absorbing-host sphere, summed ``extra_terms`` beyond the talk's M.
+
+    A convergence check, not a faster path: the alternating back-scattering series is the
+    last to converge, so summing further shows how far :func:`efficiencies` is from the
+    series' limit.
+    """
+    longer = _n_terms(x) + extra_terms
+    a = np.zeros(longer + 2, complex)
+    b = np.zeros(longer + 2, complex)
+    _ab_clear(
+        complex(m), float(x), a[:longer], b[:longer], np.zeros(longer), np.zeros(longer + 2, complex),
+        np.zeros(longer + 2),
+    )  # fmt: skip
+    _, back, _ = _sums(a, b, longer)
+    return float(abs(back) ** 2 / x**2)
+
+
 def efficiencies(
     m: complex | np.ndarray, x: float | np.ndarray, n_med: complex | np.ndarray = 1.0
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

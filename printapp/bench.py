@@ -46,6 +46,31 @@ def median_seconds(fn: Callable[[], object], repeats: int) -> tuple[float, list[
     return statistics.median(times), times
 
 
+def interleaved_seconds(
+    fns: dict[str, Callable[[], Any]], repeats: int, warmups: dict[str, Callable[[], Any]] | None = None
+) -> tuple[dict[str, float], dict[str, Any], dict[str, float]]:
+    """Median wall time of each ``fn``, timed in turn within every repeat.
+
+    Round-robin, so that the load of a shared machine falls on every contender alike.
+    Each function is first called once untimed; ``warmups``, when given, replaces those
+    calls (cheaper ones, or none). Returns the medians, each function's last result,
+    and its process CPU time over wall time (how many cores it kept busy).
+    """
+    for warm in (fns if warmups is None else warmups).values():
+        warm()
+    times: dict[str, list[float]] = {k: [] for k in fns}
+    cpu: dict[str, float] = dict.fromkeys(fns, 0.0)
+    last: dict[str, Any] = {}
+    for _ in range(max(1, repeats)):
+        for key, fn in fns.items():
+            cpu0, start = time.process_time(), time.perf_counter()
+            last[key] = fn()
+            times[key].append(time.perf_counter() - start)
+            cpu[key] += time.process_time() - cpu0
+    medians = {k: statistics.median(v) for k, v in times.items()}
+    return medians, last, {k: cpu[k] / max(sum(times[k]), 1e-12) for k in fns}
+
+
 def _triangulated_value(
     heights: np.ndarray, dx: float, dy: float, x: np.ndarray, y: np.ndarray
 ) -> np.ndarray:

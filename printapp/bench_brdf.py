@@ -32,7 +32,6 @@ from __future__ import annotations
 
 import math
 import os
-import statistics
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -42,7 +41,7 @@ import numpy as np
 from numba import njit, prange
 
 from noise._hash import _mix64, seed_key
-from printapp.bench import StageResult
+from printapp.bench import StageResult, interleaved_seconds
 from render.gonio import _primary_origin, _trace
 
 SIDE = 512
@@ -311,30 +310,6 @@ def lobe_deviation(f: np.ndarray, reference: np.ndarray, omega: np.ndarray, bins
 # --- timing helpers ------------------------------------------------------------------------
 
 
-def _interleaved(
-    fns: dict[str, Callable[[], Any]], warmups: dict[str, Callable[[], Any]], repeats: int
-) -> tuple[dict[str, float], dict[str, Any], dict[str, float]]:
-    """Median wall time of each ``fn``, timed in turn within every repeat, after its cheap warm-up.
-
-    Round-robin, so that the load of a shared machine falls on every engine alike. Returns
-    the medians, each function's last result, and its process CPU time over wall time
-    (how many cores it kept busy).
-    """
-    for warm in warmups.values():
-        warm()
-    times: dict[str, list[float]] = {k: [] for k in fns}
-    cpu: dict[str, float] = dict.fromkeys(fns, 0.0)
-    last: dict[str, Any] = {}
-    for _ in range(max(1, repeats)):
-        for key, fn in fns.items():
-            cpu0, start = time.process_time(), time.perf_counter()
-            last[key] = fn()
-            times[key].append(time.perf_counter() - start)
-            cpu[key] += time.process_time() - cpu0
-    medians = {k: statistics.median(v) for k, v in times.items()}
-    return medians, last, {k: cpu[k] / sum(times[k]) for k in fns}
-
-
 def _loglog_slope(x: list[float], y: list[float]) -> float:
     return float(np.polyfit(np.log(x), np.log(y), 1)[0])
 
@@ -444,7 +419,7 @@ def _throughput(geometries, estimate, repeats, notes, rates) -> tuple[list[dict[
                 ray = peers.mitsuba_ray(origins, dirs)
                 fns["mitsuba"] = lambda r=ray, p=peers: p.mitsuba_hits(r)
                 warm["mitsuba"] = fns["mitsuba"]  # the kernel compiles for this ray count
-            seconds, last, cores = _interleaved(fns, warm, repeats)
+            seconds, last, cores = interleaved_seconds(fns, repeats, warm)
             rate = {k: THROUGHPUT_RAYS / s for k, s in seconds.items()}
             row: dict[str, Any] = {"geometry": name, "theta_i_deg": theta}
             for tag in ("black", "pigment"):
@@ -501,8 +476,8 @@ def _sweep(estimate, geometry, repeats) -> tuple[list[dict[str, Any]], dict[floa
         w = omega.ravel()[bins]
         for n in list(SWEEP_RAYS) + ([BIG_RAYS] if theta == 0.0 else []):
             reps = repeats if n <= 1_000_000 else 1
-            seconds, last, _ = _interleaved(
-                {"est": lambda n=n, a=args: estimate(*a, n)}, {"est": lambda a=args: estimate(*a, 1000)}, reps
+            seconds, last, _ = interleaved_seconds(
+                {"est": lambda n=n, a=args: estimate(*a, n)}, reps, {"est": lambda a=args: estimate(*a, 1000)}
             )
             fs, ses = last["est"].f_specular[0], last["est"].stderr_specular[0]
             combined = np.sqrt(ses.ravel()[bins] ** 2 + s_ref.ravel()[bins] ** 2)
@@ -558,7 +533,7 @@ def _target(estimate, geometry, peers_entry, repeats) -> dict[str, Any]:
         o32, d32 = origins.astype(np.float32), dirs.astype(np.float32)
         fns["embreex"] = lambda: peers.embree_hits(o32, d32)
         warm["embreex"] = lambda: peers.embree_hits(o32[:2000], d32[:2000])
-    seconds, last, _ = _interleaved(fns, warm, repeats)
+    seconds, last, _ = interleaved_seconds(fns, repeats, warm)
     cal = last["est"]
     omega = cal.projected_solid_angle
     cal_err = [lobe_error(cal.f_specular[k], cal.stderr_specular[k], omega) for k in range(n_in)]
@@ -567,7 +542,8 @@ def _target(estimate, geometry, peers_entry, repeats) -> dict[str, Any]:
         [_round_up(CALIBRATION_RAYS * (e / TARGET_ERROR) ** 2) for e in cal_err], dtype=np.int64
     )
     # The warm-up is the calibration run above; the same seed gives the same table every time.
-    t_check_all, last, _ = _interleaved({"check": lambda: estimate(*args, per_dir)}, {}, min(repeats, 3))
+    check_run = {"check": lambda: estimate(*args, per_dir)}
+    t_check_all, last, _ = interleaved_seconds(check_run, min(repeats, 3), {})
     t_check, check = t_check_all["check"], last["check"]
     check_err = [lobe_error(check.f_specular[k], check.stderr_specular[k], omega) for k in range(n_in)]
     est_rate = n_in * CALIBRATION_RAYS / seconds["est"]

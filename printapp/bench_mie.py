@@ -17,14 +17,13 @@ from __future__ import annotations
 
 import math
 import os
-import statistics
 import time
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from printapp.bench import StageResult
+from printapp.bench import StageResult, interleaved_seconds
 
 _RATIOS = (0.1, 0.3, 1.0, 3.0, 10.0, 30.0)
 _JND_LEVELS = 1.0
@@ -68,20 +67,6 @@ def _mpmath_reference() -> Any:
     return module
 
 
-def _interleaved(functions: dict[str, Any], repeats: int) -> dict[str, float]:
-    """Median seconds of each function, timed in turn within every repeat (after one warm-up
-    each), so that a burst of load on the shared machine hits all of them alike."""
-    for fn in functions.values():
-        fn()
-    times: dict[str, list[float]] = {name: [] for name in functions}
-    for _ in range(repeats):
-        for name, fn in functions.items():
-            start = time.perf_counter()
-            fn()
-            times[name].append(time.perf_counter() - start)
-    return {name: statistics.median(values) for name, values in times.items()}
-
-
 def _speed(repeats: int, miepython: Any) -> list[dict[str, Any]]:
     import numba
 
@@ -107,7 +92,7 @@ def _speed(repeats: int, miepython: Any) -> list[dict[str, Any]]:
             if miepython is not None:
                 functions["miepython"] = lambda m=m, x=x: miepython.efficiencies_mx(m, x)
             # Small batches are quick: time them more often to steady the medians.
-            seconds = _interleaved(functions, repeats * (4 if n < 100_000 else 1))
+            seconds, _, _ = interleaved_seconds(functions, repeats * (4 if n < 100_000 else 1))
             row: dict[str, Any] = {
                 "particles": "rutile in PMMA, m(1 - 0.02i)" if absorbing else "rutile in PMMA",
                 "pairs": n,

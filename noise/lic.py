@@ -301,11 +301,14 @@ def _unit_padded(field, row: np.uint64, x, y, nx: int, ny: int):
     return du * inverse, dv * inverse, True
 
 
-@njit(cache=True)
-def _largest_finite(u, v) -> float:
-    """Largest finite |component| of the field (0 if none)."""
-    largest = 0.0
-    for j in range(u.shape[0]):
+@njit(cache=True, parallel=True)
+def _scan_inputs(u, v, texture, rows) -> None:
+    """Per row j: rows[j] = (largest finite |field component|, texture sum, 1 if the
+    texture row is all finite else 0), in one parallel pass over the inputs."""
+    for j in prange(u.shape[0]):
+        largest = 0.0
+        total = 0.0
+        finite = 1.0
         for i in range(u.shape[1]):
             a = abs(u[j, i])
             b = abs(v[j, i])
@@ -313,7 +316,13 @@ def _largest_finite(u, v) -> float:
                 largest = a
             if b > largest and math.isfinite(b):
                 largest = b
-    return largest
+            t = texture[j, i]
+            if not math.isfinite(t):
+                finite = 0.0
+            total += t
+        rows[j, 0] = largest
+        rows[j, 1] = total
+        rows[j, 2] = finite
 
 
 @njit(cache=True, parallel=True)
@@ -450,8 +459,9 @@ def _map_start(m, row: int, i: int, j: int):
 
 
 @njit(cache=True, parallel=True, fastmath={"contract"})
-def _lic_flowmap(forward, backward, tex, nx: int, ny: int, h: float, weights, out) -> None:
-    """Per-pixel LIC through the step maps; ``weights[k]`` weighs the k-th step each way.
+def _lic_flowmap(forward, backward, tex, nx: int, ny: int, h: float, mean: float, weights, out) -> None:
+    """Per-pixel LIC through the step maps; ``weights[k]`` weighs the k-th step each way,
+    ``mean`` is added back to the (centred) texture's averages.
 
     Four pixels, each traced forward and backward, advance together: eight
     independent dependency chains that the processor overlaps.
@@ -504,10 +514,10 @@ def _lic_flowmap(forward, backward, tex, nx: int, ny: int, h: float, weights, ou
                 weight_b += c3 + c4
                 weight_c += c5 + c6
                 weight_d += c7 + c8
-            out[j, ia - 1] = sum_a / weight_a
-            out[j, ib - 1] = sum_b / weight_b
-            out[j, ic - 1] = sum_c / weight_c
-            out[j, id_ - 1] = sum_d / weight_d
+            out[j, ia - 1] = np.float64(sum_a / weight_a) + mean
+            out[j, ib - 1] = np.float64(sum_b / weight_b) + mean
+            out[j, ic - 1] = np.float64(sum_c / weight_c) + mean
+            out[j, id_ - 1] = np.float64(sum_d / weight_d) + mean
 
 
 def _as_field(name: str, array: np.ndarray, shape: tuple[int, ...] | None) -> np.ndarray:
@@ -576,10 +586,12 @@ def lic2d(
         (relative rounding about 1e-7 of the texture's spread).
     """
     tex = _as_field("texture", texture, None)
-    if not np.all(np.isfinite(tex)):
-        raise ValueError("texture: expected finite values")
     uu = _as_field("u", u, tex.shape)
     vv = _as_field("v", v, tex.shape)
+    scan = np.empty((tex.shape[0], 3))
+    _scan_inputs(uu, vv, tex, scan)
+    if not np.all(scan[:, 2]):
+        raise ValueError("texture: expected finite values")
     if not (np.isfinite(length) and length > 0):
         raise ValueError(f"length: expected a positive number of pixels, got {length!r}")
     if kernel not in KERNELS:
@@ -597,7 +609,7 @@ def lic2d(
     # Scale the field by a power of two (exact: directions do not change) so that its
     # largest finite component lies in [0.5, 1): the zero-vector threshold (1e-12) is
     # then relative to the field's size, and float32 cannot overflow.
-    largest = _largest_finite(uu, vv)
+    largest = float(scan[:, 0].max())
     scale = math.ldexp(1.0, -math.frexp(largest)[1]) if largest > 0 else 1.0
     # A whole number of steps spans the half-length exactly.
     n_steps = max(1, math.ceil(length / step - 1e-9))
@@ -608,16 +620,16 @@ def lic2d(
         field = np.empty((ny + 2, nx + 2, 2), dtype=np.float32)
         padded_texture = np.empty((ny + 2, nx + 2), dtype=np.float32)
         # Centred, so that float32 keeps the texture's detail whatever its offset.
-        mean = float(tex.mean())
+        mean = float(scan[:, 1].sum()) / tex.size
         _pad_inputs(uu, vv, scale, tex, mean, field, padded_texture)
         maps = np.empty((2, ny + 2, nx + 2, 2), dtype=np.float32)
         _build_step_maps(field.reshape(-1), float(step), rk4, maps)
         hann = kernel == "hann"
         weights = np.array([_kernel_weight(k, n_steps, hann) for k in range(1, n_steps + 1)], np.float32)
-        out = np.empty((ny, nx), dtype=np.float32)
+        out = np.empty((ny, nx))
         forward, backward = maps[0].reshape(-1), maps[1].reshape(-1)
-        _lic_flowmap(forward, backward, padded_texture.reshape(-1), nx, ny, float(step), weights, out)
-        return out.astype(np.float64) + mean
+        _lic_flowmap(forward, backward, padded_texture.reshape(-1), nx, ny, float(step), mean, weights, out)
+        return out
     uu = np.where(np.isfinite(uu), uu * scale, np.nan)
     vv = np.where(np.isfinite(vv), vv * scale, np.nan)
     if method == "exact":

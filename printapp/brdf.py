@@ -141,8 +141,11 @@ def parse_incident(spec: str | None) -> tuple[tuple[float, float], ...] | None:
     return tuple(pairs)
 
 
-def plot_brdf(appearance, path: Path, title: str) -> None:
-    """The table as polar maps (one per incident direction, log scale) and cuts in the plane of incidence."""
+def brdf_plot_png(appearance, title: str) -> bytes:
+    """The table as polar maps (one per incident direction, log scale) and cuts in the plane of
+    incidence, as PNG bytes."""
+    import io
+
     import matplotlib
 
     matplotlib.use("Agg")
@@ -201,5 +204,7 @@ def plot_brdf(appearance, path: Path, title: str) -> None:
         f"(relative error {fit.relative_error:.1%})",
         fontsize=9,
     )
-    fig.savefig(path)
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png")
     plt.close(fig)
+    return buffer.getvalue()

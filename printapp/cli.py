@@ -362,7 +362,7 @@ def heightmap(
     import numpy as np
     from rich.table import Table
 
-    from printapp.exporters import atomic_write_bytes
+    from printapp.exporters import atomic_write_files
     from printapp.topography import roughness
 
     try:
@@ -389,12 +389,14 @@ def heightmap(
             "flatten": flatten,
             "parameters": values,
         }
+        outputs = []
         if json_out is not None:
-            atomic_write_bytes(json_out, (json.dumps(summary, indent=2) + "\n").encode())
+            outputs.append((json_out, (json.dumps(summary, indent=2) + "\n").encode()))
         if out is not None:
             buffer = io.BytesIO()
             np.save(buffer, heights)
-            atomic_write_bytes(out, buffer.getvalue())
+            outputs.append((out, buffer.getvalue()))
+        atomic_write_files(outputs)
     except PrintappError as exc:
         raise _fail(exc) from None
     title = (
@@ -744,13 +746,13 @@ def brdf(
     from printapp.brdf import (
         MESH_SUFFIXES,
         brdf_arrays,
+        brdf_plot_png,
         grey_albedo,
         heightfield_from_mesh,
         npz_bytes,
         parse_incident,
-        plot_brdf,
     )
-    from printapp.exporters import atomic_write_bytes
+    from printapp.exporters import atomic_write_files
     from printapp.heightfield import HeightField
     from render.appearance import DEFAULT_INCIDENT_DEG, predict_appearance
 
@@ -795,17 +797,13 @@ def brdf(
             periodic=periodic,
             distribution=distribution.value,
         )
-        atomic_write_bytes(out, npz_bytes(brdf_arrays(predicted)))
+        outputs = [(out, npz_bytes(brdf_arrays(predicted)))]
         metrics = {"source": str(source), "from": origin, "grid": list(field.shape), **predicted.metrics}
         if json_out is not None:
-            atomic_write_bytes(json_out, (json.dumps(metrics, indent=2) + "\n").encode())
+            outputs.append((json_out, (json.dumps(metrics, indent=2) + "\n").encode()))
         if plot is not None:
-            import tempfile
-
-            with tempfile.TemporaryDirectory(dir=plot.parent if plot.parent.exists() else None) as tmp:
-                staged = Path(tmp) / plot.name
-                plot_brdf(predicted, staged, source.name)
-                staged.replace(plot)
+            outputs.append((plot, brdf_plot_png(predicted, source.name)))
+        atomic_write_files(outputs)
     except PrintappError as exc:
         raise _fail(exc) from None
     m = predicted.metrics
@@ -958,7 +956,7 @@ def render(
     from PIL import Image
 
     from printapp.design import load_design
-    from printapp.exporters import atomic_write_bytes
+    from printapp.exporters import atomic_write_files
     from printapp.mesh import combine_solids
     from printapp.pipeline import appearance_field, build_relief
     from printapp.rendering import light_sweep, predict_for_design, render_preview
@@ -987,9 +985,10 @@ def render(
         field, _ = appearance_field(design, relief)
         predicted = predict_for_design(design, field)
         preview = render_preview(design, relief, mesh, predicted, field)
-        atomic_write_bytes(out, png_bytes(preview.image))
+        outputs = [(out, png_bytes(preview.image))]
         if sweep is not None:
-            atomic_write_bytes(sweep, png_bytes(light_sweep(design, relief, mesh, predicted, field)))
+            outputs.append((sweep, png_bytes(light_sweep(design, relief, mesh, predicted, field))))
+        atomic_write_files(outputs)
     except PrintappError as exc:
         raise _fail(exc) from None
     if preview.warning:

@@ -117,20 +117,45 @@ def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
     DesignError
         If the folder does not exist or cannot be written.
     """
-    path = Path(path)
-    folder = path.parent if str(path.parent) else Path(".")
-    if not folder.is_dir():
-        raise DesignError(f"{path}: the folder {folder} does not exist")
+    return atomic_write_files([(Path(path), data)])[0]
+
+
+def atomic_write_files(outputs: list[tuple[Path, bytes]]) -> list[Path]:
+    """Write several files so that none appears unless all were written.
+
+    Every file is first written in full to a temporary name beside its destination;
+    only then are they renamed into place, one ``os.replace`` each (atomic on one file
+    system). A failure while writing leaves no output and no temporary file.
+
+    Raises
+    ------
+    DesignError
+        If a folder does not exist or cannot be written.
+    """
+    paths = [Path(path) for path, _ in outputs]
+    for path in paths:
+        folder = path.parent if str(path.parent) else Path(".")
+        if not folder.is_dir():
+            raise DesignError(f"{path}: the folder {folder} does not exist")
+        if path.is_dir():
+            raise DesignError(f"{path}: is a folder, expected a file name")
+    staged: list[str] = []
+    current = paths[0] if paths else Path(".")
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".partial", dir=folder)
-        with os.fdopen(fd, "wb") as handle:
-            handle.write(data)
-        os.replace(tmp, path)
+        for current, (_, data) in zip(paths, outputs, strict=True):
+            folder = current.parent if str(current.parent) else Path(".")
+            fd, tmp = tempfile.mkstemp(prefix=f".{current.name}.", suffix=".partial", dir=folder)
+            staged.append(tmp)
+            with os.fdopen(fd, "wb") as handle:
+                handle.write(data)
+        for tmp, current in zip(staged, paths, strict=True):
+            os.replace(tmp, current)
     except OSError as exc:
-        if "tmp" in locals() and os.path.exists(tmp):
-            os.unlink(tmp)
-        raise DesignError(f"{path}: cannot write the file ({exc.strerror or exc})") from None
-    return path
+        for tmp in staged:
+            if os.path.exists(tmp):
+                os.unlink(tmp)
+        raise DesignError(f"{current}: cannot write the file ({exc.strerror or exc})") from None
+    return paths
 
 
 def ply_bytes(vertices: np.ndarray, faces: np.ndarray) -> bytes:

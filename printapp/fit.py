@@ -726,18 +726,14 @@ def _to_image(rgb: np.ndarray):
 def write_outputs(
     result: FitResult, toml_path: Path, preview_path: Path | None = None, json_path: Path | None = None
 ) -> list[Path]:
-    """Write fitted.toml (and fit.png, metrics.json): all composed first, each renamed into place."""
+    """Write fitted.toml (and fit.png, metrics.json): all written first, then renamed into place."""
     import json
 
-    from printapp.exporters import atomic_write_bytes
+    from printapp.exporters import atomic_write_files
 
     outputs: list[tuple[Path, bytes]] = [(toml_path, fitted_toml(result).encode())]
     if preview_path is not None:
         outputs.append((preview_path, preview_png(result)))
     if json_path is not None:
         outputs.append((json_path, (json.dumps(result.metrics(), indent=2) + "\n").encode()))
-    for path, _ in outputs:
-        folder = path.parent if str(path.parent) else Path(".")
-        if not folder.is_dir():
-            raise PrintappError(f"{path}: the folder {folder} does not exist")
-    return [atomic_write_bytes(path, data) for path, data in outputs]
+    return atomic_write_files(outputs)

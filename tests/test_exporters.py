@@ -8,7 +8,7 @@ import pytest
 import trimesh
 
 from printapp.errors import DesignError
-from printapp.exporters import OutputFolder, stl_bytes, threemf_bytes
+from printapp.exporters import OutputFolder, atomic_write_files, stl_bytes, threemf_bytes
 
 
 @pytest.fixture
@@ -53,3 +53,16 @@ def test_output_folder_that_is_a_file(tmp_path):
     target.write_text("x")
     with pytest.raises(DesignError, match="output folder is a file"), OutputFolder(target):
         pass
+
+
+def test_several_files_appear_together_or_not_at_all(tmp_path):
+    (tmp_path / "sub").mkdir()
+    first, second = tmp_path / "a.json", tmp_path / "sub" / "b.png"
+    assert atomic_write_files([(first, b"{}"), (second, b"png")]) == [first, second]
+    assert first.read_bytes() == b"{}" and second.read_bytes() == b"png"
+    # a later destination that cannot be written stops all of them, before anything moves
+    for blocked in (tmp_path / "missing" / "c.png", tmp_path / "sub"):
+        with pytest.raises(DesignError, match="folder"):
+            atomic_write_files([(first, b"new"), (blocked, b"x")])
+        assert first.read_bytes() == b"{}"
+    assert sorted(p.name for p in tmp_path.rglob("*")) == ["a.json", "b.png", "sub"]  # no temporaries left

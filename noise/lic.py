@@ -272,6 +272,27 @@ _U3 = np.uint64(3)
 
 
 @njit(cache=True, inline="always")
+def _cell(x, y, row: np.uint64):
+    """Cell index (row-major, ``row`` cells per row) and bilinear fractions of a point in
+    padded coordinates (non-negative, so truncation is the floor)."""
+    i0 = np.uint32(x)
+    j0 = np.uint32(y)
+    return np.uint64(j0) * row + np.uint64(i0), x - np.float32(i0), y - np.float32(j0)
+
+
+@njit(cache=True, inline="always", fastmath={"contract"})
+def _blend2(a, c: np.uint64, row: np.uint64, fx, fy):
+    """Bilinear blend of a two-channel, cell-interleaved flat array around cell ``c``."""
+    c2 = c + c
+    b2 = c2 + row + row
+    top = a[c2] + fx * (a[c2 + _U2] - a[c2])
+    first = top + fy * (a[b2] + fx * (a[b2 + _U2] - a[b2]) - top)
+    top = a[c2 + _U1] + fx * (a[c2 + _U3] - a[c2 + _U1])
+    second = top + fy * (a[b2 + _U1] + fx * (a[b2 + _U3] - a[b2 + _U1]) - top)
+    return first, second
+
+
+@njit(cache=True, inline="always")
 def _unit_padded(field, row: np.uint64, x, y, nx: int, ny: int):
     """``_field`` on an edge-padded, interleaved float32 copy of (u, v), flattened.
 
@@ -281,19 +302,8 @@ def _unit_padded(field, row: np.uint64, x, y, nx: int, ny: int):
     """
     if not (x >= -_FHALF and x <= nx - _FHALF and y >= -_FHALF and y <= ny - _FHALF):
         return _F0, _F0, False
-    xp = x + _F1
-    yp = y + _F1
-    i0 = np.uint32(xp)
-    j0 = np.uint32(yp)
-    fx = xp - np.float32(i0)
-    fy = yp - np.float32(j0)
-    c = np.uint64(j0) * row + np.uint64(i0)
-    c = c + c
-    b = c + row + row
-    top = field[c] + fx * (field[c + _U2] - field[c])
-    du = top + fy * (field[b] + fx * (field[b + _U2] - field[b]) - top)
-    top = field[c + _U1] + fx * (field[c + _U3] - field[c + _U1])
-    dv = top + fy * (field[b + _U1] + fx * (field[b + _U3] - field[b + _U1]) - top)
+    c, fx, fy = _cell(x + _F1, y + _F1, row)
+    du, dv = _blend2(field, c, row, fx, fy)
     norm = np.sqrt(du * du + dv * dv)
     if not norm > np.float32(1e-12):  # also catches NaN
         return _F0, _F0, False
@@ -428,18 +438,9 @@ def _map_step(m, tex, row: np.uint64, shortest2, x, y, dx, dy, alive):
     """
     x = x + dx
     y = y + dy
-    i0 = np.uint32(x)
-    j0 = np.uint32(y)
-    fx = x - np.float32(i0)
-    fy = y - np.float32(j0)
-    c = np.uint64(j0) * row + np.uint64(i0)  # cell index; the map has two floats per cell
+    c, fx, fy = _cell(x, y, row)
+    ndx, ndy = _blend2(m, c, row, fx, fy)
     b = c + row
-    c2 = c + c
-    b2 = b + b
-    top = m[c2] + fx * (m[c2 + _U2] - m[c2])
-    ndx = top + fy * (m[b2] + fx * (m[b2 + _U2] - m[b2]) - top)
-    top = m[c2 + _U1] + fx * (m[c2 + _U3] - m[c2 + _U1])
-    ndy = top + fy * (m[b2 + _U1] + fx * (m[b2 + _U3] - m[b2 + _U1]) - top)
     top = tex[c] + fx * (tex[c + _U1] - tex[c])
     t = top + fy * (tex[b] + fx * (tex[b + _U1] - tex[b]) - top)
     # False for a NaN step too. A step that turns back has passed a sink or a source; a

@@ -667,14 +667,17 @@ def slice_command(
             raise PrintappError(f"{model}: {exc}") from None
         buffer = io.BytesIO()
         stats = write_sl1(buffer, slices, out.stem)
-        if png_dir is not None:
+        if png_dir is None:
+            atomic_write_bytes(out, buffer.getvalue())
+        else:
+            # The PNG stack is staged first and moved in only once the .sl1 is written.
             with OutputFolder(png_dir) as folder:
                 with zipfile.ZipFile(io.BytesIO(buffer.getvalue())) as archive:
                     folder.write_bytes("config.ini", archive.read("config.ini"))
                 for k, png in encoded_layers(slices):
                     folder.write_bytes(f"{k:05d}.png", png)
+                atomic_write_bytes(out, buffer.getvalue())
                 folder.commit()
-        atomic_write_bytes(out, buffer.getvalue())
     except PrintappError as exc:
         raise _fail(exc) from None
     label = PRINTERS[printer].label

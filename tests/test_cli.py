@@ -355,6 +355,14 @@ def test_slice_command_writes_an_archive_and_a_png_stack(tmp_path):
     assert image.mode == "L" and image.size == (1440, 2560)
 
 
+def test_slice_command_writes_no_png_stack_when_the_archive_cannot_be_written(tmp_path):
+    stack = tmp_path / "stack"
+    out = tmp_path / "missing" / "part.sl1"
+    result = printapp("slice", ROOT / "data" / "meshes" / "featuretype.STL", "-o", out, "--png-dir", stack)
+    assert result.returncode == 2 and "does not exist" in result.stderr
+    assert not list(stack.rglob("*.png"))
+
+
 @pytest.mark.parametrize(
     ("args", "message"),
     [

@@ -373,11 +373,16 @@ def _build_step_maps(field, h: float, rk4: bool, maps) -> None:
     sixth = np.float32(h / 6.0)
     two = np.float32(2.0)
     for j in prange(ny + 2):
-        for i in range(nx + 2):
-            for d in range(2):
-                maps[d, j, i, 0] = nan
-                maps[d, j, i, 1] = nan
+        for d in range(2):
+            maps[d, j, 0, 0] = nan
+            maps[d, j, 0, 1] = nan
+            maps[d, j, nx + 1, 0] = nan
+            maps[d, j, nx + 1, 1] = nan
         if j == 0 or j > ny:
+            for i in range(1, nx + 1):
+                for d in range(2):
+                    maps[d, j, i, 0] = nan
+                    maps[d, j, i, 1] = nan
             continue
         y = np.float32(j - 1)
         # stage[s, q, i]: direction (x, y) of stage s of the forward (q = 0, 1) and
@@ -421,9 +426,9 @@ def _build_step_maps(field, h: float, rk4: bool, maps) -> None:
                     dy = signed * stage[1, qy, i]
                 end_x = x + dx
                 end_y = y + dy
-                if ok[n_stages - 1, d, i] and -0.5 <= end_x <= nx - 0.5 and -0.5 <= end_y <= ny - 0.5:
-                    maps[d, j, i + 1, 0] = dx
-                    maps[d, j, i + 1, 1] = dy
+                valid = ok[n_stages - 1, d, i] and -0.5 <= end_x <= nx - 0.5 and -0.5 <= end_y <= ny - 0.5
+                maps[d, j, i + 1, 0] = dx if valid else nan
+                maps[d, j, i + 1, 1] = dy if valid else nan
 
 
 @njit(cache=True, inline="always", fastmath={"contract"})

@@ -42,7 +42,7 @@ from numba import njit, prange
 
 from noise._hash import _mix64, seed_key
 from printapp.bench import StageResult, interleaved_seconds
-from render.gonio import _primary_origin, _trace
+from render.gonio import _primary_origin, _trace, lobe_bins, lobe_error
 
 SIDE = 512
 ANGLES_DEG = (0.0, 60.0, 85.0)
@@ -55,7 +55,6 @@ REFERENCE_SEED = 1
 TARGET_ERROR = 0.01
 TARGET_SECONDS = 10.0
 CALIBRATION_RAYS = 500_000
-LOBE_FRACTION = 0.9
 GAUSSIAN_CORR_PX = 4.0
 GAUSSIAN_SDQ = 0.2
 
@@ -278,25 +277,6 @@ class TracerFirstHit:
 
 
 # --- the specular lobe's error -------------------------------------------------------------
-
-
-def lobe_bins(f_specular: np.ndarray, omega: np.ndarray, fraction: float = LOBE_FRACTION) -> np.ndarray:
-    """Flat indices of the fewest bins holding ``fraction`` of the specular energy ``f omega``."""
-    energy = (f_specular * omega).ravel()
-    order = np.argsort(energy, kind="stable")[::-1]
-    cumulative = np.cumsum(energy[order])
-    if cumulative[-1] <= 0.0:
-        return order[:0]
-    return order[: int(np.searchsorted(cumulative, fraction * cumulative[-1])) + 1]
-
-
-def lobe_error(f: np.ndarray, stderr: np.ndarray, omega: np.ndarray, bins: np.ndarray | None = None) -> float:
-    """Energy-weighted mean relative standard error over the lobe: ``sum omega s / sum omega f``."""
-    if bins is None:
-        bins = lobe_bins(f, omega)
-    w = omega.ravel()[bins]
-    total = float(np.sum(w * f.ravel()[bins]))
-    return float(np.sum(w * stderr.ravel()[bins])) / total if total > 0.0 else math.inf
 
 
 def lobe_deviation(f: np.ndarray, reference: np.ndarray, omega: np.ndarray, bins: np.ndarray) -> float:

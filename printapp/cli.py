@@ -716,8 +716,19 @@ def brdf(
         str | None, typer.Option(help="Incident directions 'THETA:PHI,...' in degrees [a sweep of 7].")
     ] = None,
     rays: Annotated[
-        int, typer.Option(min=100, max=100_000_000, help="Primary rays per direction.")
+        int,
+        typer.Option(min=100, max=100_000_000, help="Primary rays per direction (--lobe-error: first run)."),
     ] = 200_000,
+    lobe_error: Annotated[
+        float | None,
+        typer.Option(
+            help="Trace each direction until its reflection lobe's relative standard error is this "
+            "(e.g. 0.01) [design's, else off]."
+        ),
+    ] = None,
+    max_rays: Annotated[
+        int, typer.Option(min=100, max=1_000_000_000, help="With --lobe-error: most rays per direction.")
+    ] = 100_000_000,
     theta_bins: Annotated[int, typer.Option(min=4, max=360, help="Outgoing bins over 0-90 deg.")] = 45,
     phi_bins: Annotated[int, typer.Option(min=4, max=720, help="Outgoing bins over 0-360 deg.")] = 90,
     distribution: Annotated[FitDistribution, typer.Option(help="Fitted microfacet distribution.")] = (
@@ -766,7 +777,7 @@ def brdf(
             raise PrintappError(f"{plot}: expected a plot file ending in .png")
         incident = parse_incident(incident_deg) or DEFAULT_INCIDENT_DEG
         suffix = source.suffix.lower()
-        design_ior, design_albedo, origin = 1.5, 0.8, "height map"
+        design_ior, design_albedo, design_lobe_error, origin = 1.5, 0.8, None, "height map"
         if suffix == ".toml":
             from printapp.design import load_design
             from printapp.pipeline import appearance_field
@@ -775,6 +786,7 @@ def brdf(
             field, origin = appearance_field(design)
             design_ior = design.material.refractive_index
             design_albedo = grey_albedo(design.material.body_albedo)
+            design_lobe_error = design.brdf.lobe_error
         elif suffix in MESH_SUFFIXES:
             field, origin = heightfield_from_mesh(source, pitch_mm), "mesh tile's top surface"
         else:
@@ -786,6 +798,9 @@ def brdf(
             raise PrintappError(f"--ior: expected a refractive index in [1, 3], got {n_ior:g}")
         if not (0.0 <= rho <= 1.0):
             raise PrintappError(f"--body-albedo: expected a value in [0, 1], got {rho:g}")
+        target = design_lobe_error if lobe_error is None else lobe_error
+        if target is not None and not (0.0 < target < 1.0):
+            raise PrintappError(f"--lobe-error: expected a fraction in (0, 1), e.g. 0.01, got {target:g}")
         predicted = predict_appearance(
             field.heights_mm,
             field.pitch_x_mm,
@@ -799,6 +814,8 @@ def brdf(
             seed=seed,
             periodic=periodic,
             distribution=distribution.value,
+            lobe_error_target=target,
+            max_rays=max_rays,
         )
         outputs = [(out, npz_bytes(brdf_arrays(predicted)))]
         metrics = {"source": str(source), "from": origin, "grid": list(field.shape), **predicted.metrics}
@@ -824,6 +841,11 @@ def brdf(
         f"{_percent(fit['relative_error'])} over {fit['bins']} bins (the table's own noise there: "
         f"{_percent(fit['table_noise'])})"
     )
+    errors = ", ".join(_percent(e) for e in m["lobe_error"])
+    rays_used = m["rays_per_direction"]
+    low, high = min(rays_used), max(rays_used)
+    budget = f"{low:,}" if low == high else f"{low:,} to {high:,}"
+    _out.print(f"reflection lobe's standard error per direction: {errors} ({budget} rays per direction)")
     for path in (out, plot, json_out):
         if path is not None:
             _out.print(f"  wrote {path}")

@@ -286,6 +286,9 @@ class Brdf(_Section):
     """Microfacet distribution of the fitted compact model ('auto': the better fit)."""
     theta_bins: Annotated[int, at.Ge(4), at.Le(360)] = 45
     phi_bins: Annotated[int, at.Ge(4), at.Le(720)] = 90
+    lobe_error: Annotated[float, at.Gt(0.0), at.Lt(1.0)] | None = None
+    """When set (e.g. 0.01): trace each incident direction until its reflection lobe's
+    relative standard error is this, starting from ``rays`` (at most 1e8 per direction)."""
 
 
 class Render(_Section):

@@ -44,6 +44,7 @@ def predict_for_design(design: Design, field: HeightField) -> Any:
         n_phi=design.brdf.phi_bins,
         seed=design.texture.seed,
         distribution=design.brdf.distribution,
+        lobe_error_target=design.brdf.lobe_error,
     )
 
 

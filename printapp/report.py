@@ -274,6 +274,19 @@ def _kv_table(rows: Sequence[tuple[str, Any]]) -> str:
     return f"<table>{body}</table>"
 
 
+def _rays_text(rays: Any) -> str:
+    """One count when every direction had the same rays, else the list."""
+    if isinstance(rays, list) and rays:
+        return f"{rays[0]:,}" if len(set(rays)) == 1 else ", ".join(f"{r:,}" for r in rays)
+    return "n/a" if rays is None else f"{rays:,}"
+
+
+def _percent_list(values: Any) -> str:
+    if not values:
+        return "n/a"
+    return ", ".join("n/a" if v is None else f"{100.0 * v:.1f} %" for v in values)
+
+
 def _fmt_mm(values: Sequence[float]) -> str:
     return " x ".join(f"{v:.3f}" for v in values) + " mm"
 
@@ -459,7 +472,8 @@ def report_html(
                         "the table's own noise on those bins",
                         "n/a" if fit.get("table_noise") is None else f"{100.0 * fit['table_noise']:.1f} %",
                     ),
-                    ("rays per incident direction", b.get("rays_per_direction")),
+                    ("rays per incident direction", _rays_text(b.get("rays_per_direction"))),
+                    ("lobe standard error per direction", _percent_list(b.get("lobe_error"))),
                     ("traced from", b.get("from")),
                 ]
             )

@@ -21,9 +21,18 @@ import numpy as np
 
 from render.brdf_model import FitResult, fit_microfacet, lobe_alpha
 from render.fresnel import fresnel_dielectric
-from render.gonio import BrdfTable, direction_from_angles, estimate_brdf
+from render.gonio import (
+    BrdfTable,
+    direction_from_angles,
+    estimate_brdf,
+    rays_for_lobe_error,
+    table_lobe_errors,
+)
 
 BLACK_GLASS_INDEX = 1.567
+# A small calibration run underestimates the lobe's error (its lobe holds fewer bins, and
+# sparsely hit bins understate their spread), so the budget is refined from each run.
+_BUDGET_ROUNDS = 4
 GLOSS_APERTURES_DEG = {20: (1.8, 3.6), 60: (4.4, 11.7), 85: (4.0, 6.0)}
 """Receptor apertures (in the plane of incidence, across it), full angles in degrees."""
 
@@ -89,6 +98,8 @@ def predict_appearance(
     seed: int = 0,
     periodic: bool = False,
     distribution: str = "auto",
+    lobe_error_target: float | None = None,
+    max_rays: int = 100_000_000,
 ) -> Appearance:
     """Trace a relief's BRDF, read gloss and haze off it, and fit the compact model.
 
@@ -99,7 +110,15 @@ def predict_appearance(
     incident_deg : sequence of (theta, phi) in degrees
         Incident directions of the table.
     rays : int
-        Primary rays per incident direction (table and glossmeter alike).
+        Primary rays per incident direction (table and glossmeter alike); with
+        ``lobe_error_target``, the table's calibration run.
+    lobe_error_target : float, optional
+        Trace each incident direction until its surface-reflection lobe reaches this
+        relative standard error (:func:`render.gonio.lobe_error`, e.g. 0.01): the error
+        falls as 1/sqrt(rays), so a run's errors give each direction's rays
+        (:func:`render.gonio.rays_for_lobe_error`), capped at ``max_rays``; the budget is
+        refined from each run until every direction meets the target (at most four
+        runs). A matte lobe at normal incidence needs far more rays than a grazing one.
     periodic : bool
         Whether the relief tiles seamlessly; a patch cut from a larger relief does not.
 
@@ -115,19 +134,35 @@ def predict_appearance(
     if np.any(inc[:, 0] < 0) or np.any(inc[:, 0] >= 90):
         raise ValueError("incident_deg: polar angles must lie in [0, 90) degrees")
     wi = direction_from_angles(np.radians(inc[:, 0]), np.radians(inc[:, 1]))
-    table = estimate_brdf(
-        heights_mm,
-        pitch_x_mm,
-        pitch_y_mm,
-        wi,
-        rays=rays,
-        ior=ior,
-        body_albedo=body_albedo,
-        n_theta=n_theta,
-        n_phi=n_phi,
-        seed=seed,
-        periodic=periodic,
-    )
+    if lobe_error_target is not None and not (0.0 < lobe_error_target < 1.0):
+        raise ValueError(f"lobe_error_target: expected a fraction in (0, 1), got {lobe_error_target!r}")
+
+    def trace(per_direction: int | np.ndarray) -> BrdfTable:
+        return estimate_brdf(
+            heights_mm,
+            pitch_x_mm,
+            pitch_y_mm,
+            wi,
+            rays=per_direction,
+            ior=ior,
+            body_albedo=body_albedo,
+            n_theta=n_theta,
+            n_phi=n_phi,
+            seed=seed,
+            periodic=periodic,
+        )
+
+    table = trace(rays)
+    lobe_errors = table_lobe_errors(table)
+    for _ in range(_BUDGET_ROUNDS if lobe_error_target is not None else 0):
+        if not np.any(lobe_errors > lobe_error_target):
+            break
+        budget = rays_for_lobe_error(lobe_errors, table.rays, lobe_error_target, max_rays)
+        if np.array_equal(budget, table.rays):
+            break  # capped at max_rays
+        # The same seed: the earlier run's rays are the first of the longer run's.
+        table = trace(budget)
+        lobe_errors = table_lobe_errors(table)
     angles = sorted(GLOSS_APERTURES_DEG)
     gloss_inc = [(a, phi) for phi in (0.0, 90.0) for a in angles]
     g_wi = direction_from_angles(np.radians([a for a, _ in gloss_inc]), np.radians([p for _, p in gloss_inc]))
@@ -188,7 +223,8 @@ def predict_appearance(
             "table_noise": _finite(fit.table_noise),
             "bins": fit.bins_used,
         },
-        "rays_per_direction": int(rays),
+        "rays_per_direction": [int(r) for r in table.rays],
+        "lobe_error": [_finite(float(e)) for e in lobe_errors],
         "lost_fraction": float(np.max(np.concatenate([table.lost, gloss_table.lost]))),
     }
     return Appearance(table=table, gloss_table=gloss_table, fit=fit, metrics=metrics)

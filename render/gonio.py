@@ -565,6 +565,56 @@ def projected_solid_angle(theta_edges: np.ndarray, phi_edges: np.ndarray) -> np.
     return 0.5 * np.outer(np.diff(s2), np.diff(np.asarray(phi_edges)))
 
 
+LOBE_FRACTION = 0.9  # the bins holding this much of the specular energy are "the lobe"
+
+
+def lobe_bins(f_specular: np.ndarray, omega: np.ndarray, fraction: float = LOBE_FRACTION) -> np.ndarray:
+    """Flat indices of the fewest bins holding ``fraction`` of the specular energy ``f omega``."""
+    energy = (f_specular * omega).ravel()
+    order = np.argsort(energy, kind="stable")[::-1]
+    cumulative = np.cumsum(energy[order])
+    if cumulative[-1] <= 0.0:
+        return order[:0]
+    return order[: int(np.searchsorted(cumulative, fraction * cumulative[-1])) + 1]
+
+
+def lobe_error(f: np.ndarray, stderr: np.ndarray, omega: np.ndarray, bins: np.ndarray | None = None) -> float:
+    """Energy-weighted mean relative standard error over the lobe: ``sum omega s / sum omega f``.
+
+    The error of a traced highlight: inf where nothing was reflected at the surface.
+    """
+    if bins is None:
+        bins = lobe_bins(f, omega)
+    w = omega.ravel()[bins]
+    total = float(np.sum(w * f.ravel()[bins]))
+    return float(np.sum(w * stderr.ravel()[bins])) / total if total > 0.0 else math.inf
+
+
+def table_lobe_errors(table: BrdfTable) -> np.ndarray:
+    """:func:`lobe_error` of each incident direction's surface-reflection lobe."""
+    omega = table.projected_solid_angle
+    return np.array(
+        [lobe_error(table.f_specular[k], table.stderr_specular[k], omega) for k in range(len(table.wi))]
+    )
+
+
+def rays_for_lobe_error(
+    errors: np.ndarray, rays: np.ndarray, target: float, max_rays: int = 100_000_000
+) -> np.ndarray:
+    """Primary rays per direction for a lobe error of ``target``, from a run's ``errors`` with ``rays``.
+
+    The error falls as 1/sqrt(rays) (checked in ``printapp bench brdf``: log-log slopes
+    -0.496 to -0.501), so a direction needs ``rays (error / target)^2``; never fewer than
+    were traced, never more than ``max_rays`` (a direction without a lobe gets the
+    calibration's rays).
+    """
+    errors = np.asarray(errors, dtype=np.float64)
+    rays = np.asarray(rays, dtype=np.int64)
+    ratio = np.where(np.isfinite(errors), (errors / target) ** 2, 1.0)
+    needed = np.ceil(rays * np.maximum(ratio, 1.0))
+    return np.minimum(needed, max_rays).astype(np.int64)
+
+
 def direction_from_angles(theta_rad: np.ndarray, phi_rad: np.ndarray) -> np.ndarray:
     """Unit vectors (n, 3) from polar angle (from +z) and azimuth (from +x towards +y)."""
     theta = np.atleast_1d(np.asarray(theta_rad, dtype=np.float64))

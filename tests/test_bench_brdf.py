@@ -15,14 +15,12 @@ from scipy.ndimage import gaussian_filter
 from printapp.bench_brdf import (
     TracerFirstHit,
     face_cells,
-    lobe_bins,
-    lobe_error,
     mesh_margin_cells,
     periodic_mesh,
     primary_rays,
     tracer_slopes,
 )
-from render.gonio import direction_from_angles, estimate_brdf
+from render.gonio import direction_from_angles, estimate_brdf, lobe_bins, lobe_error
 from tests.reference.ray_triangles import first_hits
 
 NY, NX = 24, 30  # not square, and different pitches, so that x and y cannot be swapped unnoticed

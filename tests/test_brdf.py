@@ -22,6 +22,7 @@ from render.gonio import (
     estimate_brdf,
     max_mipmap,
     projected_solid_angle,
+    rays_for_lobe_error,
 )
 from render.microfacet import slope_roughness
 
@@ -242,6 +243,29 @@ def test_fit_recovers_the_roughness_and_body_of_a_gaussian_surface():
 
 
 # --- Where it fails -----------------------------------------------------------------------
+
+
+def test_ray_budget_for_a_lobe_error_follows_one_over_sqrt_rays():
+    errors = np.array([0.02, 0.005, np.inf, 0.5])
+    budget = rays_for_lobe_error(errors, np.array([1000] * 4), 0.01, max_rays=100_000)
+    # 2x the error needs 4x the rays; never fewer than traced; no lobe: as traced; capped
+    assert budget.tolist() == [4000, 1000, 1000, 100_000]
+
+
+def test_each_direction_is_traced_to_the_lobe_error_asked_for():
+    h = gaussian_surface(0.25, n=128, corr_px=2.0) * 0.05
+    plain = predict_appearance(h, 0.05, 0.05, rays=4000, body_albedo=0.3, periodic=True)
+    ap = predict_appearance(h, 0.05, 0.05, rays=4000, body_albedo=0.3, periodic=True, lobe_error_target=0.05)
+    before = np.array(plain.metrics["lobe_error"])
+    after = np.array(ap.metrics["lobe_error"])
+    rays = np.array(ap.metrics["rays_per_direction"])
+    assert np.all(before > 0.05)  # 4000 rays were not enough anywhere
+    assert np.all(after <= 0.05)
+    # at least what 1/sqrt(rays) from the first run calls for (more: a small run
+    # underestimates its lobe's error, and the budget is refined)
+    assert np.all(rays >= np.ceil(4000 * (before / 0.05) ** 2))
+    assert np.all(rays < 3 * np.ceil(4000 * (before / 0.05) ** 2))
+    assert rays.max() > 2 * rays.min()  # the matte normal lobe needs more than the grazing ones
 
 
 def test_rays_through_vertices_and_along_edges_always_hit_the_right_height():

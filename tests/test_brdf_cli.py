@@ -168,6 +168,23 @@ def test_design_file_uses_the_as_printed_relief_and_the_design_material(tmp_path
     assert float(load(tmp_path / "d.npz")["ior"]) == 1.55
 
 
+def test_lobe_error_target_from_the_design_or_the_command(tmp_path):
+    design = tmp_path / "d.toml"
+    design.write_text(
+        "[base]\nwidth_mm = 4.0\ndepth_mm = 4.0\n[texture]\nfeature_size_mm = 1.0\n"
+        "[relief]\namplitude_mm = 0.1\n[brdf]\nlobe_error = 0.002\n"
+    )
+    metrics = tmp_path / "m.json"
+    assert brdf(design, "--rays", 5000, "-o", tmp_path / "d.npz", "--json", metrics).exit_code == 0
+    m = json.loads(metrics.read_text())
+    assert max(m["lobe_error"]) <= 0.002
+    assert max(m["rays_per_direction"]) > 5000  # 5000 rays were not enough somewhere
+    # the command's target overrides the design's
+    loose = brdf(design, "--rays", 5000, "--lobe-error", "0.5", "-o", tmp_path / "e.npz", "--json", metrics)
+    assert loose.exit_code == 0
+    assert json.loads(metrics.read_text())["rays_per_direction"] == [5000] * len(m["rays_per_direction"])
+
+
 @pytest.mark.parametrize(
     ("args", "message"),
     [
@@ -177,6 +194,7 @@ def test_design_file_uses_the_as_printed_relief_and_the_design_material(tmp_path
         (["{map}", "--pitch-mm", "0.1", "-o", "{tmp}/table.csv"], ".npz"),
         (["{map}", "--pitch-mm", "0.1", "--ior", "0.5"], "--ior"),
         (["{map}", "--pitch-mm", "0.1", "--body-albedo", "1.5"], "--body-albedo"),
+        (["{map}", "--pitch-mm", "0.1", "--lobe-error", "0"], "--lobe-error"),
         (["{map}"], "pitch"),
     ],
 )

@@ -271,7 +271,7 @@ _U2 = np.uint64(2)
 _U3 = np.uint64(3)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _cell(x, y, row: np.uint64):
     """Cell index (row-major, ``row`` cells per row) and bilinear fractions of a point in
     padded coordinates (non-negative, so truncation is the floor)."""
@@ -280,7 +280,7 @@ def _cell(x, y, row: np.uint64):
     return np.uint64(j0) * row + np.uint64(i0), x - np.float32(i0), y - np.float32(j0)
 
 
-@njit(cache=True, inline="always", fastmath={"contract"})
+@njit(cache=True, fastmath={"contract"})
 def _blend2(a, c: np.uint64, row: np.uint64, fx, fy):
     """Bilinear blend of a two-channel, cell-interleaved flat array around cell ``c``."""
     c2 = c + c
@@ -292,7 +292,7 @@ def _blend2(a, c: np.uint64, row: np.uint64, fx, fy):
     return first, second
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _unit_padded(field, row: np.uint64, x, y, nx: int, ny: int):
     """``_field`` on an edge-padded, interleaved float32 copy of (u, v), flattened.
 
@@ -431,7 +431,7 @@ def _build_step_maps(field, h: float, rk4: bool, maps) -> None:
                 maps[d, j, i + 1, 1] = dy if valid else nan
 
 
-@njit(cache=True, inline="always", fastmath={"contract"})
+@njit(cache=True, fastmath={"contract"})
 def _map_step(m, tex, row: np.uint64, shortest2, x, y, dx, dy, alive):
     """One step of a streamline through a flat step map ``m`` and texture ``tex``.
 
@@ -455,7 +455,7 @@ def _map_step(m, tex, row: np.uint64, shortest2, x, y, dx, dy, alive):
     return x, y, (ndx if ok else _F0), (ndy if ok else _F0), (alive if ok else _F0), t
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _map_start(m, row: int, i: int, j: int):
     """First step and liveness of the streamline from padded cell (i, j)."""
     c = 2 * (j * row + i)

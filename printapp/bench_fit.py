@@ -14,14 +14,12 @@ veined marbles.
 
 from __future__ import annotations
 
-import statistics
-import time
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from printapp.bench import StageResult, median_seconds
+from printapp.bench import StageResult, interleaved_seconds
 from printapp.errors import PrintappError
 
 BUDGETS = (8, 32, 64, 160, 320)
@@ -85,17 +83,6 @@ def _recovery() -> dict[str, Any]:
     return out
 
 
-def _timed(fn, repeats: int) -> tuple[float, Any]:
-    """Median seconds of ``repeats`` timed calls after a warm-up call, whose result is returned."""
-    result = fn()
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - start)
-    return statistics.median(times), result
-
-
 def _thumb(rgb: np.ndarray):
     from PIL import Image
 
@@ -114,8 +101,9 @@ def bench_fit(repeats: int) -> StageResult:
     fit_photo(_photos()[0], max_side=64, budget=8)  # warm: numba caches, noise spectra, imports
     for path in _photos():
         photo = read_photo(path)
-        seconds, result = _timed(lambda p=photo: fit_photo(p), reps)
-        phase_s, _ = median_seconds(lambda p=photo: random_phase(p.rgb, 0), reps)
+        timed = {"fit": lambda p=photo: fit_photo(p), "phase": lambda p=photo: random_phase(p.rgb, 0)}
+        medians, last, _ = interleaved_seconds(timed, reps)
+        seconds, result, phase_s = medians["fit"], last["fit"], medians["phase"]
         m = result.metrics()["measures"]
         row: dict[str, Any] = {
             "image": path.name,
@@ -146,9 +134,10 @@ def bench_fit(repeats: int) -> StageResult:
         photo = read_photo(next(p for p in _photos() if p.name == name))
         for model in ("fbm", "turbulence", "marble"):
             for budget in BUDGETS:
-                seconds, result = _timed(
-                    lambda p=photo, m=model, b=budget: fit_photo(p, model=m, budget=b), 1
+                medians, last, _ = interleaved_seconds(
+                    {"fit": lambda p=photo, m=model, b=budget: fit_photo(p, model=m, budget=b)}, 1
                 )
+                seconds, result = medians["fit"], last["fit"]
                 report = result.chosen
                 sweep.append(
                     {

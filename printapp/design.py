@@ -20,6 +20,7 @@ import tomli_w
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from printapp.errors import DesignError
+from printapp.tomlfile import read_toml
 from slicing import PRINTERS, PrinterProfile
 
 # Unit suffixes a file may use, mapped to the internal field's suffix and the factor
@@ -622,22 +623,7 @@ def load_design(path: str | Path) -> Design:
         does not validate (with the key and what was expected).
     """
     path = Path(path)
-    try:
-        raw = path.read_bytes()
-    except FileNotFoundError:
-        raise DesignError(f"{path}: no such design file") from None
-    except IsADirectoryError:
-        raise DesignError(f"{path}: expected a design file (.toml), found a folder") from None
-    except OSError as exc:
-        raise DesignError(f"{path}: cannot read the design file ({exc.strerror})") from None
-    try:
-        text = raw.decode("utf-8")
-    except UnicodeDecodeError:
-        raise DesignError(f"{path}: expected a UTF-8 text TOML file") from None
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise DesignError(f"{path}: TOML syntax error: {exc}") from None
+    data = read_toml(path, str(path), "design", DesignError)
     data = _include_texture(data, path)
     design = design_from_dict(data, str(path))
     kind, _, image = design.texture.field.partition(":")

@@ -11,7 +11,6 @@ files and turns every problem into one sentence naming the material, key or file
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import dataclass, field
 from functools import lru_cache
 from importlib.resources import files
@@ -21,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from printapp.errors import PrintappError
+from printapp.tomlfile import read_toml
 
 CATALOGUE = files("printapp").joinpath("data/materials.toml")
 _INDEX_KEYS = {
@@ -176,20 +176,7 @@ def _build_index(name: str, raw: dict[str, Any], raw_all: dict[str, Any], where:
 
 
 def _read_toml(path: Path | Any, label: str) -> dict[str, Any]:
-    try:
-        text = path.read_bytes().decode("utf-8")
-    except FileNotFoundError:
-        raise MaterialError(f"{label}: no such material file") from None
-    except IsADirectoryError:
-        raise MaterialError(f"{label}: expected a material file (.toml), found a folder") from None
-    except OSError as exc:
-        raise MaterialError(f"{label}: cannot read the material file ({exc.strerror})") from None
-    except UnicodeDecodeError:
-        raise MaterialError(f"{label}: expected a UTF-8 text TOML file") from None
-    try:
-        return tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise MaterialError(f"{label}: TOML syntax error: {exc}") from None
+    return read_toml(path, label, "material", MaterialError)
 
 
 def _parse_material(

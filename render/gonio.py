@@ -612,7 +612,7 @@ def rays_for_lobe_error(
     rays = np.asarray(rays, dtype=np.int64)
     ratio = np.where(np.isfinite(errors), (errors / target) ** 2, 1.0)
     needed = np.ceil(rays * np.maximum(ratio, 1.0))
-    return np.minimum(needed, max_rays).astype(np.int64)
+    return np.maximum(np.minimum(needed, max_rays), rays).astype(np.int64)
 
 
 def direction_from_angles(theta_rad: np.ndarray, phi_rad: np.ndarray) -> np.ndarray:

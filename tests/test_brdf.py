@@ -250,6 +250,8 @@ def test_ray_budget_for_a_lobe_error_follows_one_over_sqrt_rays():
     budget = rays_for_lobe_error(errors, np.array([1000] * 4), 0.01, max_rays=100_000)
     # 2x the error needs 4x the rays; never fewer than traced; no lobe: as traced; capped
     assert budget.tolist() == [4000, 1000, 1000, 100_000]
+    # a cap below what was traced keeps what was traced
+    assert rays_for_lobe_error(errors, np.array([1000] * 4), 0.01, max_rays=500).tolist() == [1000] * 4
 
 
 def test_each_direction_is_traced_to_the_lobe_error_asked_for():

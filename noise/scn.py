@@ -33,7 +33,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from noise._hash import _hash_cell, _rnd, seed_key
+from noise.hashing import hash_cell, stream_uniform, seed_key
 
 CELL_SEED_MODES = ("hash", "frisvad")
 _DENSE_MIN_POINTS = 3  # cells with fewer points are evaluated point by point
@@ -46,7 +46,7 @@ def _cell_base(
     mode_hash: bool, key: np.uint64, n_impulses: np.int64, qx: np.int64, qy: np.int64, qz: np.int64
 ):
     if mode_hash:
-        c = _hash_cell(key, qx, qy, qz)
+        c = hash_cell(key, qx, qy, qz)
         return np.uint64(4) * (np.uint64(n_impulses) * c)
     # The talk's n = 4 (N q.a + j): wraps in 64 bits like the C original would.
     dot = qx * np.int64(_A[0]) + qy * np.int64(_A[1]) + qz * np.int64(_A[2])
@@ -83,11 +83,11 @@ def _scn_point(
         base = _cell_base(mode_hash, key, n_impulses, qx, qy, qz)
         for j in range(1, n_impulses + 1):
             n = base + np.uint64(4 * j)
-            a = _rnd(key, n)
+            a = stream_uniform(key, n)
             alpha = -a if j & 1 else a
-            dx = rx + _rnd(key, n + np.uint64(1))
-            dy = ry + _rnd(key, n + np.uint64(2))
-            dz = rz + _rnd(key, n + np.uint64(3))
+            dx = rx + stream_uniform(key, n + np.uint64(1))
+            dy = ry + stream_uniform(key, n + np.uint64(2))
+            dz = rz + stream_uniform(key, n + np.uint64(3))
             w = max(1.0 - 4.0 * (dx * dx + dy * dy + dz * dz), 0.0)
             total += alpha * (w * w * w)
     return total
@@ -115,11 +115,11 @@ def _fill_impulses(
         base = _cell_base(mode_hash, key, n_impulses, bx + di, by + dj, bz + dk)
         for j in range(1, n_impulses + 1):
             n = base + np.uint64(4 * j)
-            a = _rnd(key, n)
+            a = stream_uniform(key, n)
             amp[k] = -a if j & 1 else a
-            ox[k] = float(di) + _rnd(key, n + np.uint64(1))
-            oy[k] = float(dj) + _rnd(key, n + np.uint64(2))
-            oz[k] = float(dk) + _rnd(key, n + np.uint64(3))
+            ox[k] = float(di) + stream_uniform(key, n + np.uint64(1))
+            oy[k] = float(dj) + stream_uniform(key, n + np.uint64(2))
+            oz[k] = float(dk) + stream_uniform(key, n + np.uint64(3))
             k += 1
 
 

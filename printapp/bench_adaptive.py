@@ -18,7 +18,7 @@ BOUNDS_UM = (0.0, 0.25, 0.5, 1.0, 2.0, 5.0, 10.0, 20.0)
 
 def bench_adaptive(repeats: int) -> StageResult:
     import noise
-    from printapp.heightfield import HeightField
+    from noise.heightfield import HeightField
     from printapp.slab import adaptive_slab_arrays, slab_arrays
 
     axis = np.linspace(0.0, 6.0, 257)

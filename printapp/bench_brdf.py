@@ -40,7 +40,7 @@ from typing import Any
 import numpy as np
 from numba import njit, prange
 
-from noise._hash import _mix64, seed_key
+from noise.hashing import mix64, seed_key
 from printapp.bench import StageResult, interleaved_seconds
 from render.gonio import _primary_origin, _trace, lobe_bins, lobe_error
 
@@ -132,7 +132,7 @@ def _primary_origins(wis, starts, counts, window, px, py, zmax, period_x, period
     for d_idx in range(wis.shape[0]):
         wix, wiy, wiz = wis[d_idx, 0], wis[d_idx, 1], wis[d_idx, 2]
         for k in prange(counts[d_idx]):
-            ray_key = _mix64(key ^ (np.uint64(d_idx) << np.uint64(40)) ^ np.uint64(k))
+            ray_key = mix64(key ^ (np.uint64(d_idx) << np.uint64(40)) ^ np.uint64(k))
             x0, y0 = _primary_origin(ray_key, window, d_idx, px, py, wix, wiy, wiz, zmax, period_x, period_y)
             row = starts[d_idx] + k
             out[row, 0] = x0

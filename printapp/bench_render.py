@@ -68,8 +68,8 @@ def representation_error(
 
 def bench_render(repeats: int) -> StageResult:
     from printapp.pipeline import build_relief
-    from printapp.rendering import PREVIEW_FOV_DEG, base_shape, predict_for_design
-    from render.mitsuba_adapter import Framing, choose_variant, render_resin_mesh
+    from printapp.rendering import base_shape, predict_for_design
+    from render.mitsuba_adapter import PREVIEW_FOV_DEG, Framing, choose_variant, render_resin_mesh
     from render.representation import GEOMETRY_FROM_FEATURES_PER_PIXEL, compact_surface, table_surface
 
     choose_variant()

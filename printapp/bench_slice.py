@@ -34,7 +34,7 @@ def _parts(folder: Path) -> list[tuple[str, Path]]:
 
     import noise
     from printapp.exporters import stl_bytes
-    from printapp.heightfield import HeightField
+    from noise.heightfield import HeightField
     from printapp.mesh import slab_from_heightfield
 
     sphere = trimesh.creation.icosphere(subdivisions=5, radius=20.0)

@@ -17,7 +17,7 @@ import numpy as np
 from numba import njit
 
 from printapp.errors import PrintappError
-from printapp.heightfield import HeightField
+from noise.heightfield import HeightField
 
 MESH_SUFFIXES = (".stl", ".ply", ".obj", ".off", ".3mf")
 REC709_LUMA = (0.2126, 0.7152, 0.0722)

@@ -437,7 +437,7 @@ def emboss(
     import numpy as np
 
     from printapp.exporters import atomic_write_bytes, ply_bytes, stl_bytes, threemf_bytes
-    from printapp.heightfield import HeightField
+    from noise.heightfield import HeightField
     from printapp.slab import adaptive_slab_arrays, slab_arrays
     from slicing import PRINTERS
 
@@ -767,7 +767,7 @@ def brdf(
         parse_incident,
     )
     from printapp.exporters import atomic_write_files
-    from printapp.heightfield import HeightField
+    from noise.heightfield import HeightField
     from render.appearance import DEFAULT_INCIDENT_DEG, predict_appearance
 
     try:
@@ -802,9 +802,7 @@ def brdf(
         if target is not None and not (0.0 < target < 1.0):
             raise PrintappError(f"--lobe-error: expected a fraction in (0, 1), e.g. 0.01, got {target:g}")
         predicted = predict_appearance(
-            field.heights_mm,
-            field.pitch_x_mm,
-            field.pitch_y_mm,
+            field,
             ior=n_ior,
             body_albedo=rho,
             incident_deg=incident,

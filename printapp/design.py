@@ -290,6 +290,8 @@ class Brdf(_Section):
     lobe_error: Annotated[float, at.Gt(0.0), at.Lt(1.0)] | None = None
     """When set (e.g. 0.01): trace each incident direction until its reflection lobe's
     relative standard error is this, starting from ``rays`` (at most 1e8 per direction)."""
+    seed: Annotated[int, at.Ge(0), at.Lt(2**63)] = 0
+    """Seed of the traced rays (independent of the texture's seed)."""
 
 
 class Render(_Section):
@@ -302,6 +304,8 @@ class Render(_Section):
     azimuth_rad: Annotated[float, at.Ge(-2 * math.pi), at.Le(2 * math.pi)] = math.radians(-60.0)
     distance_scale: Annotated[float, at.Ge(0.2), at.Le(1000.0)] = 1.0
     """Camera distance relative to the one that frames the object (larger: farther away)."""
+    seed: Annotated[int, at.Ge(0), at.Lt(2**32)] = 0
+    """Seed of the path tracer's samples (independent of the texture's and the BRDF's)."""
     mode: Literal["auto", "model", "table", "geometry"] = "auto"
     """How the relief is rendered: its fitted BRDF ('model'), its traced BRDF table ('table') or
     its geometry; 'auto' takes the cheapest that shows what the camera can resolve."""

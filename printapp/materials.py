@@ -596,8 +596,7 @@ def render_choice(
     ``translucency = "auto"`` compares the material's largest transport mean free path with the
     preview's pixel footprint on the object (:func:`render.translucency.choose_translucency`).
     """
-    from printapp.rendering import PREVIEW_FOV_DEG
-    from render.mitsuba_adapter import Framing
+    from render.mitsuba_adapter import PREVIEW_FOV_DEG, Framing
     from render.translucency import MEDIUM_THRESHOLD, choose_translucency
 
     if chosen is None:

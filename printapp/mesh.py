@@ -10,7 +10,7 @@ import trimesh
 
 from noise.frames import angle_weighted_normals
 from printapp.errors import DesignError
-from printapp.heightfield import HeightField
+from noise.heightfield import HeightField
 from printapp.slab import slab_arrays
 
 MAX_TRIANGLES = 8_000_000

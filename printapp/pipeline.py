@@ -22,7 +22,7 @@ from printapp.brdf import brdf_arrays, npz_bytes
 from printapp.design import Design, MeshBase, TileBase, load_design, resolved_toml
 from printapp.exporters import OutputFolder, stl_bytes, threemf_bytes
 from printapp.fields import is_tile_field, surface_lic_values
-from printapp.heightfield import HeightField
+from noise.heightfield import HeightField
 from printapp.mesh import (
     SolidCheck,
     check_solid,
@@ -179,9 +179,7 @@ def slice_tile(design: Design, patch: HeightField) -> Slices:
     """A tile's layers straight from its height field: the same layers as slicing the slab, no mesh."""
     assert isinstance(design.base, TileBase)
     return slice_heightfield(
-        patch.heights_mm,
-        patch.pitch_x_mm,
-        patch.pitch_y_mm,
+        patch,
         design.base.thickness_mm,
         design.printer.profile,
         layer_height_mm=design.layer_height_mm,
@@ -423,7 +421,11 @@ def run_design(
             "printapp": _versions()["printapp"],
             "versions": _versions(),
             "design": {"name": design.name, "source": source, "base": design.base.shape},
-            "seed": design.texture.seed,
+            "seeds": {
+                "texture": design.texture.seed,
+                "brdf": design.brdf.seed,
+                "render": design.render.seed,
+            },
             "stages_s": dict(timer.seconds),
             "triangles": solid.triangles,
             "vertices": int(len(mesh.vertices)),

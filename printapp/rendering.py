@@ -11,10 +11,8 @@ import trimesh
 
 from printapp.brdf import grey_albedo
 from printapp.design import Design, TileBase
-from printapp.heightfield import HeightField
+from noise.heightfield import HeightField
 from printapp.mesh import slab_from_heightfield
-
-PREVIEW_FOV_DEG = 30.0
 
 
 @dataclass
@@ -34,15 +32,13 @@ def predict_for_design(design: Design, field: HeightField) -> Any:
     from render.appearance import predict_appearance
 
     return predict_appearance(
-        field.heights_mm,
-        field.pitch_x_mm,
-        field.pitch_y_mm,
+        field,
         ior=design.material.refractive_index,
         body_albedo=grey_albedo(design.material.body_albedo),
         rays=design.brdf.rays,
         n_theta=design.brdf.theta_bins,
         n_phi=design.brdf.phi_bins,
-        seed=design.texture.seed,
+        seed=design.brdf.seed,
         distribution=design.brdf.distribution,
         lobe_error_target=design.brdf.lobe_error,
     )
@@ -86,7 +82,7 @@ def render_preview(
     code, which only the vectorised variants run at speed). ``tables`` keeps a traced
     table between calls (a light sweep renders the same surface several times).
     """
-    from render.mitsuba_adapter import Framing, choose_variant, render_resin_mesh
+    from render.mitsuba_adapter import PREVIEW_FOV_DEG, Framing, choose_variant, render_resin_mesh
     from render.representation import Choice, choose_representation, compact_surface, table_surface
 
     variant = choose_variant()
@@ -127,7 +123,7 @@ def render_preview(
             rays=max(2_000, design.brdf.rays // 5),
             n_theta=design.brdf.theta_bins,
             n_phi=design.brdf.phi_bins,
-            seed=design.texture.seed,
+            seed=design.brdf.seed,
         )
         target = base
         if tables is not None:
@@ -140,7 +136,7 @@ def render_preview(
         width_px=r.width_px,
         height_px=r.height_px,
         spp=r.spp,
-        seed=design.texture.seed,
+        seed=r.seed,
         elevation_rad=r.elevation_rad,
         azimuth_rad=r.azimuth_rad,
         fov_deg=PREVIEW_FOV_DEG,

@@ -383,7 +383,8 @@ def report_html(
     add('<h2 id="design">Design</h2>')
     add(
         '<p class="explain">The design file with every default filled in (units in mm and degrees). '
-        "Running it again gives the same model, byte for byte: the seed fixes all randomness.</p>"
+        "Running it again gives the same model, byte for byte: the seeds (texture, BRDF rays, render "
+        "samples, each its own) fix all randomness.</p>"
     )
     add(
         _kv_table(
@@ -391,7 +392,10 @@ def report_html(
                 ("name", name),
                 ("source", d.get("source", "")),
                 ("base", d.get("base", "")),
-                ("seed", m.get("seed", "")),
+                (
+                    "seeds",
+                    ", ".join(f"{k} {v}" for k, v in (m.get("seeds") or {}).items()),
+                ),
             ]
         )
     )

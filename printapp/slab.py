@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from printapp.heightfield import HeightField
+from noise.heightfield import HeightField
 
 
 def _boundary_ring(ny: int, nx: int) -> np.ndarray:

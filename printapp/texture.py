@@ -9,7 +9,7 @@ import numpy as np
 
 import noise
 from printapp.design import Design, Texture, TileBase
-from printapp.heightfield import HeightField
+from noise.heightfield import HeightField
 
 
 def to_noise_units(points_mm: np.ndarray, texture: Texture) -> np.ndarray:

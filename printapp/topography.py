@@ -18,7 +18,7 @@ from xml.etree import ElementTree
 import numpy as np
 
 from printapp.errors import DesignError
-from printapp.heightfield import HeightField
+from noise.heightfield import HeightField
 
 IMAGE_SUFFIXES = (".png", ".tif", ".tiff")
 SUFFIXES = (*IMAGE_SUFFIXES, ".npy", ".al3d", ".x3p", ".gwy")

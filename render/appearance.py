@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from noise.heightfield import HeightField
 from render.brdf_model import FitResult, fit_microfacet, lobe_alpha
 from render.fresnel import fresnel_dielectric
 from render.gonio import (
@@ -85,9 +86,7 @@ class Appearance:
 
 
 def predict_appearance(
-    heights_mm: np.ndarray,
-    pitch_x_mm: float,
-    pitch_y_mm: float,
+    field: HeightField,
     *,
     ior: float = 1.5,
     body_albedo: float = 0.8,
@@ -105,8 +104,8 @@ def predict_appearance(
 
     Parameters
     ----------
-    heights_mm, pitch_x_mm, pitch_y_mm
-        The relief (see :func:`render.gonio.estimate_brdf`).
+    field : noise.heightfield.HeightField
+        The relief (heights and pitches in mm; see :func:`render.gonio.estimate_brdf`).
     incident_deg : sequence of (theta, phi) in degrees
         Incident directions of the table.
     rays : int
@@ -130,6 +129,7 @@ def predict_appearance(
         ``highlight`` (RMS radius, anisotropy, azimuth) and ``fit`` (parameters and
         relative error).
     """
+    heights_mm, pitch_x_mm, pitch_y_mm = field.heights_mm, field.pitch_x_mm, field.pitch_y_mm
     inc = np.asarray(incident_deg, dtype=np.float64).reshape(-1, 2)
     if np.any(inc[:, 0] < 0) or np.any(inc[:, 0] >= 90):
         raise ValueError("incident_deg: polar angles must lie in [0, 90) degrees")

@@ -48,7 +48,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numba import njit, prange
 
-from noise._hash import _mix64, _rnd, seed_key
+from noise.hashing import mix64, stream_uniform, seed_key
 from render.fresnel import _fresnel, diffuse_fresnel_reflectance
 
 _STACK = 64  # pending rays per primary ray (each hit pushes at most two)
@@ -229,8 +229,8 @@ def _primary_origin(ray_key, window, d_idx, px, py, wix, wiy, wiz, zmax, period_
     Uniform over the lit window on the mean plane z = 0, moved up along the ray to zmax
     and wrapped into the tile.
     """
-    x0 = (window[d_idx, 0] + _rnd(ray_key, np.uint64(0)) * window[d_idx, 1]) * px + wix / wiz * zmax
-    y0 = (window[d_idx, 2] + _rnd(ray_key, np.uint64(1)) * window[d_idx, 3]) * py + wiy / wiz * zmax
+    x0 = (window[d_idx, 0] + stream_uniform(ray_key, np.uint64(0)) * window[d_idx, 1]) * px + wix / wiz * zmax
+    y0 = (window[d_idx, 2] + stream_uniform(ray_key, np.uint64(1)) * window[d_idx, 3]) * py + wiy / wiz * zmax
     x0 -= math.floor(x0 / period_x) * period_x
     y0 -= math.floor(y0 / period_y) * period_y
     return x0, y0
@@ -309,7 +309,7 @@ def _gonio(
         local_spec = np.empty(_LOCAL)
         wix, wiy, wiz = wis[d_idx, 0], wis[d_idx, 1], wis[d_idx, 2]
         for k in range(k0, k1):
-            ray_key = _mix64(key ^ (np.uint64(d_idx) << np.uint64(40)) ^ np.uint64(k))
+            ray_key = mix64(key ^ (np.uint64(d_idx) << np.uint64(40)) ^ np.uint64(k))
             x0, y0 = _primary_origin(ray_key, window, d_idx, px, py, wix, wiy, wiz, zmax, period_x, period_y)
             counter = np.uint64(2)  # the stream's first two numbers placed the ray
             st_o[0, 0], st_o[0, 1], st_o[0, 2] = x0, y0, zmax
@@ -410,7 +410,7 @@ def _gonio(
                 wr = w * fr
                 if wr > 0.0:
                     if wr < _ROULETTE_W:
-                        wr = _roulette(wr, _rnd(ray_key, counter))
+                        wr = _roulette(wr, stream_uniform(ray_key, counter))
                         counter += np.uint64(1)
                     if wr > 0.0 and top < _STACK:
                         _push(st_o, st_d, st_w, st_cell, st_depth, st_spec, top, hx, hy, hz,
@@ -421,8 +421,8 @@ def _gonio(
                         scalars[job, 4] += wr
                 # The body: a cosine-distributed ray leaving the facet, weighted by 1 - R(theta_o).
                 if body_factor > 0.0 and not perfect:
-                    u1 = _rnd(ray_key, counter)
-                    u2 = _rnd(ray_key, counter + np.uint64(1))
+                    u1 = stream_uniform(ray_key, counter)
+                    u2 = stream_uniform(ray_key, counter + np.uint64(1))
                     counter += np.uint64(2)
                     r = math.sqrt(u1)
                     lx = r * math.cos(2.0 * math.pi * u2)
@@ -438,7 +438,7 @@ def _gonio(
                     ddz = lx * b1z + ly * b2z + lz * nz
                     wd = w * (1.0 - fr) * body_factor * (1.0 - _fresnel(lz, eta))
                     if wd < _ROULETTE_W:
-                        wd = _roulette(wd, _rnd(ray_key, counter))
+                        wd = _roulette(wd, stream_uniform(ray_key, counter))
                         counter += np.uint64(1)
                     if wd > 0.0 and top < _STACK:
                         _push(st_o, st_d, st_w, st_cell, st_depth, st_spec, top, hx, hy, hz,

@@ -167,6 +167,10 @@ MEDIUM_MAX_DEPTH = 1024
 of the media the chooser sends here (``render.translucency``); denser media get the body albedo."""
 
 
+PREVIEW_FOV_DEG = 30.0
+"""Field of view of printapp's preview camera (degrees, across the image's shorter side)."""
+
+
 @dataclass(frozen=True)
 class Framing:
     """Where the camera stands: it frames the bounding sphere, then backs off ``distance_scale`` times."""

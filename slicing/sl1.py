@@ -32,6 +32,7 @@ from typing import BinaryIO
 
 import numpy as np
 
+from noise.heightfield import HeightField
 from slicing.printers import PrinterProfile
 from slicing.raster import (
     _layer_box,
@@ -246,13 +247,10 @@ def slice_mesh(
 
 
 def slice_heightfield(
-    heights_mm: np.ndarray,
-    pitch_x_mm: float,
-    pitch_y_mm: float,
+    field: HeightField,
     base_thickness_mm: float,
     profile: PrinterProfile,
     *,
-    origin_mm: tuple[float, float] = (0.0, 0.0),
     layer_height_mm: float | None = None,
     antialias: bool | None = None,
 ) -> Slices:
@@ -262,8 +260,11 @@ def slice_heightfield(
     build (top triangulated along each cell's v00-v11 diagonal, vertical walls, floor at
     z = 0); its sections are computed triangle by triangle from the grid, so the layers
     are the same as slicing that mesh, at a fraction of the memory for large maps.
+    The field's origin places it in x and y.
     """
-    h = np.ascontiguousarray(heights_mm, dtype=np.float64)
+    h = np.ascontiguousarray(field.heights_mm, dtype=np.float64)
+    pitch_x_mm, pitch_y_mm = field.pitch_x_mm, field.pitch_y_mm
+    origin_mm = (field.origin_x_mm, field.origin_y_mm)
     if h.ndim != 2 or min(h.shape) < 2 or not np.all(np.isfinite(h)):
         raise ValueError("heights: expected a finite 2-D array of at least 2 x 2 samples")
     if not (pitch_x_mm > 0 and pitch_y_mm > 0 and base_thickness_mm > 0):

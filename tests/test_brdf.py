@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 from scipy.ndimage import gaussian_filter
 
+from noise.heightfield import HeightField
 from render.appearance import gloss_units, predict_appearance
 from render.brdf_model import MicrofacetBRDF, bin_average, fit_microfacet, relative_error
 from render.fresnel import diffuse_fresnel_reflectance, fresnel_dielectric
@@ -194,7 +195,7 @@ def test_ridges_stretch_the_highlight_across_them_and_the_metrics_say_so():
     x = np.arange(n)
     h = 0.15 * np.sin(2 * math.pi * x / 32.0)[None, :] * np.ones((n, 1))  # ridges along y, slopes along x
     h = h + 0.01 * np.sin(2 * math.pi * np.arange(n) / 64.0)[:, None]
-    ap = predict_appearance(h, 0.05, 0.05, rays=50_000, body_albedo=0.5, periodic=True)
+    ap = predict_appearance(HeightField(h, 0.05, 0.05), rays=50_000, body_albedo=0.5, periodic=True)
     hl = ap.metrics["highlight"]
     assert hl["anisotropy"] > 5.0
     assert min(hl["azimuth_deg"], 180.0 - hl["azimuth_deg"]) < 5.0  # long axis along x
@@ -209,7 +210,9 @@ def test_ridges_stretch_the_highlight_across_them_and_the_metrics_say_so():
 
 
 def test_polished_resin_reads_the_glossmeter_values_of_its_index():
-    ap = predict_appearance(np.zeros((32, 32)), 0.05, 0.05, rays=5_000, body_albedo=0.0, periodic=True)
+    ap = predict_appearance(
+        HeightField(np.zeros((32, 32)), 0.05, 0.05), rays=5_000, body_albedo=0.0, periodic=True
+    )
     for angle in ("20", "60", "85"):
         cos_t = math.cos(math.radians(float(angle)))
         expected = 100 * fresnel_dielectric(cos_t, 1.5) / fresnel_dielectric(cos_t, 1.567)
@@ -256,8 +259,10 @@ def test_ray_budget_for_a_lobe_error_follows_one_over_sqrt_rays():
 
 def test_each_direction_is_traced_to_the_lobe_error_asked_for():
     h = gaussian_surface(0.25, n=128, corr_px=2.0) * 0.05
-    plain = predict_appearance(h, 0.05, 0.05, rays=4000, body_albedo=0.3, periodic=True)
-    ap = predict_appearance(h, 0.05, 0.05, rays=4000, body_albedo=0.3, periodic=True, lobe_error_target=0.05)
+    plain = predict_appearance(HeightField(h, 0.05, 0.05), rays=4000, body_albedo=0.3, periodic=True)
+    ap = predict_appearance(
+        HeightField(h, 0.05, 0.05), rays=4000, body_albedo=0.3, periodic=True, lobe_error_target=0.05
+    )
     before = np.array(plain.metrics["lobe_error"])
     after = np.array(ap.metrics["lobe_error"])
     rays = np.array(ap.metrics["rays_per_direction"])

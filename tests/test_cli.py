@@ -70,7 +70,7 @@ def test_demo_model_is_a_watertight_slab_of_the_right_volume(demo_runs):
     assert manifest["volume_mm3"] == pytest.approx(mesh.volume, rel=1e-5)
     assert manifest["triangles"] == len(mesh.faces)
     assert manifest["watertight"] is True and manifest["verification"]["passed"] is True
-    assert manifest["seed"] == 7
+    assert manifest["seeds"] == {"texture": 7, "brdf": 7, "render": 7}
     assert set(manifest["stages_s"]) >= {"relief", "check", "render", "write"}
     assert manifest["printer"]["layers"] == 46  # 1 + ceil((2.3 - 0.05) / 0.05)
 

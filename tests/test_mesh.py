@@ -6,7 +6,7 @@ import trimesh
 
 from noise.frames import angle_weighted_normals
 from printapp.errors import DesignError
-from printapp.heightfield import HeightField
+from noise.heightfield import HeightField
 from printapp.mesh import (
     check_solid,
     displace_along_normals,

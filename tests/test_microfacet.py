@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from printapp.heightfield import HeightField
+from noise.heightfield import HeightField
 from render.microfacet import slope_roughness
 
 

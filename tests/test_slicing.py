@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 import trimesh
 
+from noise.heightfield import HeightField
 from slicing import PRINTERS, read_sl1, slice_heights, slice_mesh, write_sl1
 from slicing.printed import pixel_centres_mm, printed_heights
 
@@ -220,12 +221,10 @@ def test_heightfield_path_gives_the_same_archive_as_the_slab_mesh():
     mesh = slab_from_heightfield(field, 2.0)
     via_mesh, via_field = io.BytesIO(), io.BytesIO()
     write_sl1(via_mesh, slice_mesh(mesh.vertices, mesh.faces, SL1), "tile")
-    write_sl1(
-        via_field, slice_heightfield(field.heights_mm, field.pitch_x_mm, field.pitch_y_mm, 2.0, SL1), "tile"
-    )
+    write_sl1(via_field, slice_heightfield(field, 2.0, SL1), "tile")
     assert via_mesh.getvalue() == via_field.getvalue()
     with pytest.raises(ValueError, match="top must stay above"):
-        slice_heightfield(np.full((3, 3), -5.0), 0.1, 0.1, 2.0, SL1)
+        slice_heightfield(HeightField(np.full((3, 3), -5.0), 0.1, 0.1), 2.0, SL1)
 
 
 def test_winding_number_finds_self_overlap():

@@ -8,7 +8,7 @@ generating every impulse's four random numbers, with no sharing between points.
 import numpy as np
 from numba import njit, prange
 
-from noise._hash import _hash_cell, _rnd, seed_key
+from noise.hashing import hash_cell, stream_uniform, seed_key
 
 
 @njit(cache=True)
@@ -22,17 +22,17 @@ def _plain_point(px, py, pz, key, n_impulses, mode_hash):
         qy = by + (i // 2) % 2
         qz = bz + (i // 4) % 2
         if mode_hash:
-            base = np.uint64(4) * (np.uint64(n_impulses) * _hash_cell(key, qx, qy, qz))
+            base = np.uint64(4) * (np.uint64(n_impulses) * hash_cell(key, qx, qy, qz))
         else:
             base = np.uint64(
                 np.int64(4) * np.int64(n_impulses) * (qx + np.int64(1000) * qy + np.int64(576) * qz)
             )
         for j in range(1, n_impulses + 1):
             n = base + np.uint64(4 * j)
-            alpha = _rnd(key, n) * (1 - 2 * (j % 2))
-            dx = float(qx) - px + _rnd(key, n + np.uint64(1))
-            dy = float(qy) - py + _rnd(key, n + np.uint64(2))
-            dz = float(qz) - pz + _rnd(key, n + np.uint64(3))
+            alpha = stream_uniform(key, n) * (1 - 2 * (j % 2))
+            dx = float(qx) - px + stream_uniform(key, n + np.uint64(1))
+            dy = float(qy) - py + stream_uniform(key, n + np.uint64(2))
+            dz = float(qz) - pz + stream_uniform(key, n + np.uint64(3))
             v2 = dx * dx + dy * dy + dz * dz
             if v2 < 0.25:
                 w = 1.0 - 4.0 * v2

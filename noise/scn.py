@@ -33,7 +33,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from noise.hashing import hash_cell, stream_uniform, seed_key
+from noise.hashing import hash_cell, seed_key, stream_uniform
 
 CELL_SEED_MODES = ("hash", "frisvad")
 _DENSE_MIN_POINTS = 3  # cells with fewer points are evaluated point by point

@@ -33,8 +33,8 @@ def _parts(folder: Path) -> list[tuple[str, Path]]:
     import trimesh
 
     import noise
-    from printapp.exporters import stl_bytes
     from noise.heightfield import HeightField
+    from printapp.exporters import stl_bytes
     from printapp.mesh import slab_from_heightfield
 
     sphere = trimesh.creation.icosphere(subdivisions=5, radius=20.0)

@@ -16,8 +16,8 @@ from pathlib import Path
 import numpy as np
 from numba import njit
 
-from printapp.errors import PrintappError
 from noise.heightfield import HeightField
+from printapp.errors import PrintappError
 
 MESH_SUFFIXES = (".stl", ".ply", ".obj", ".off", ".3mf")
 REC709_LUMA = (0.2126, 0.7152, 0.0722)

@@ -436,8 +436,8 @@ def emboss(
     """
     import numpy as np
 
-    from printapp.exporters import atomic_write_bytes, ply_bytes, stl_bytes, threemf_bytes
     from noise.heightfield import HeightField
+    from printapp.exporters import atomic_write_bytes, ply_bytes, stl_bytes, threemf_bytes
     from printapp.slab import adaptive_slab_arrays, slab_arrays
     from slicing import PRINTERS
 
@@ -757,6 +757,7 @@ def brdf(
     """
     import json
 
+    from noise.heightfield import HeightField
     from printapp.brdf import (
         MESH_SUFFIXES,
         brdf_arrays,
@@ -767,7 +768,6 @@ def brdf(
         parse_incident,
     )
     from printapp.exporters import atomic_write_files
-    from noise.heightfield import HeightField
     from render.appearance import DEFAULT_INCIDENT_DEG, predict_appearance
 
     try:

@@ -9,8 +9,8 @@ import numpy as np
 import trimesh
 
 from noise.frames import angle_weighted_normals
-from printapp.errors import DesignError
 from noise.heightfield import HeightField
+from printapp.errors import DesignError
 from printapp.slab import slab_arrays
 
 MAX_TRIANGLES = 8_000_000

@@ -18,11 +18,11 @@ from typing import Any
 import numpy as np
 import trimesh
 
+from noise.heightfield import HeightField
 from printapp.brdf import brdf_arrays, npz_bytes
 from printapp.design import Design, MeshBase, TileBase, load_design, resolved_toml
 from printapp.exporters import OutputFolder, stl_bytes, threemf_bytes
 from printapp.fields import is_tile_field, surface_lic_values
-from noise.heightfield import HeightField
 from printapp.mesh import (
     SolidCheck,
     check_solid,

@@ -9,9 +9,9 @@ from typing import Any
 import numpy as np
 import trimesh
 
+from noise.heightfield import HeightField
 from printapp.brdf import grey_albedo
 from printapp.design import Design, TileBase
-from noise.heightfield import HeightField
 from printapp.mesh import slab_from_heightfield
 
 

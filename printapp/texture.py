@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 
 import noise
-from printapp.design import Design, Texture, TileBase
 from noise.heightfield import HeightField
+from printapp.design import Design, Texture, TileBase
 
 
 def to_noise_units(points_mm: np.ndarray, texture: Texture) -> np.ndarray:

@@ -17,8 +17,8 @@ from xml.etree import ElementTree
 
 import numpy as np
 
-from printapp.errors import DesignError
 from noise.heightfield import HeightField
+from printapp.errors import DesignError
 
 IMAGE_SUFFIXES = (".png", ".tif", ".tiff")
 SUFFIXES = (*IMAGE_SUFFIXES, ".npy", ".al3d", ".x3p", ".gwy")

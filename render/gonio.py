@@ -48,7 +48,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numba import njit, prange
 
-from noise.hashing import mix64, stream_uniform, seed_key
+from noise.hashing import mix64, seed_key, stream_uniform
 from render.fresnel import _fresnel, diffuse_fresnel_reflectance
 
 _STACK = 64  # pending rays per primary ray (each hit pushes at most two)

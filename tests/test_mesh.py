@@ -5,8 +5,8 @@ import pytest
 import trimesh
 
 from noise.frames import angle_weighted_normals
-from printapp.errors import DesignError
 from noise.heightfield import HeightField
+from printapp.errors import DesignError
 from printapp.mesh import (
     check_solid,
     displace_along_normals,

@@ -8,7 +8,7 @@ generating every impulse's four random numbers, with no sharing between points.
 import numpy as np
 from numba import njit, prange
 
-from noise.hashing import hash_cell, stream_uniform, seed_key
+from noise.hashing import hash_cell, seed_key, stream_uniform
 
 
 @njit(cache=True)

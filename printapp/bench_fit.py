@@ -1,7 +1,7 @@
 """``printapp bench fit``: fitting noise to photos, time against quality.
 
-For every photo in ``data/marble`` and ``data/textures`` (512 px copies; see
-``data/SOURCES.md``): the time of a full ``printapp fit`` (all three models, the
+For every photo in ``printapp/samples/marble`` and ``printapp/samples/textures`` (512 px copies; see
+``printapp/samples/SOURCES.md``): the time of a full ``printapp fit`` (all three models, the
 baselines and the score; median of repeats, warm), the chosen model, its score, and
 the three quality measures beside the two baselines computed in the same run: random
 parameters of the same model and the random-phase texture with the photo's spectrum
@@ -28,7 +28,7 @@ _THUMB = 160
 
 
 def _photos() -> list[Path]:
-    root = Path(__file__).resolve().parent.parent / "data"
+    root = Path(__file__).resolve().parent / "samples"
     photos = sorted((root / "marble").glob("*")) + sorted((root / "textures").glob("*"))
     photos = [p for p in photos if p.suffix.lower() in (".jpg", ".jpeg", ".png", ".webp")]
     if not photos:

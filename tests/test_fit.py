@@ -30,7 +30,7 @@ from printapp.fit import LOW_SCORE, fit_photo, read_photo
 from printapp.fit_models import NoiseLookup, Target, fit_model
 
 ROOT = Path(__file__).parent.parent
-MARBLE = sorted((ROOT / "data" / "marble").iterdir())
+MARBLE = sorted((ROOT / "printapp" / "samples" / "marble").iterdir())
 runner = CliRunner()
 
 
@@ -235,7 +235,7 @@ def test_fit_beats_random_parameters_on_every_measure(marble_fits, name):
 
 
 def test_tiled_floor_and_bricks_are_flagged_not_fitted_confidently(tmp_path):
-    tiles = fit_photo(ROOT / "data" / "marble" / "marble_01_512.jpg", budget=48)
+    tiles = fit_photo(ROOT / "printapp" / "samples" / "marble" / "marble_01_512.jpg", budget=48)
     n, rng = 256, np.random.default_rng(0)
     y, x = np.mgrid[0:n, 0:n]
     course = y // 32

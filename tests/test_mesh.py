@@ -15,7 +15,7 @@ from printapp.mesh import (
     slab_from_heightfield,
 )
 
-DATA = __import__("pathlib").Path(__file__).parent.parent / "data" / "meshes"
+DATA = __import__("pathlib").Path(__file__).parent.parent / "printapp" / "samples" / "meshes"
 
 
 def triangulated_volume(h: np.ndarray, dx: float, dy: float, base: float) -> float:

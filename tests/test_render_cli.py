@@ -70,7 +70,7 @@ def test_every_representation_renders_the_tile(tmp_path, small_design, mode):
 def test_preview_draws_any_mesh(tmp_path):
     from pathlib import Path
 
-    mesh = Path(__file__).parent.parent / "data" / "meshes" / "featuretype.STL"
+    mesh = Path(__file__).parent.parent / "printapp" / "samples" / "meshes" / "featuretype.STL"
     out = tmp_path / "view.png"
     result = runner.invoke(
         app, ["preview", str(mesh), "-o", str(out), "--width-px", "200", "--height-px", "150"]

@@ -11,7 +11,7 @@ from PIL import Image
 from printapp.errors import DesignError
 from printapp.topography import fill_masked, level, mask_outliers, read_heightmap, roughness
 
-DATA = Path(__file__).parent.parent / "data" / "topography"
+DATA = Path(__file__).parent.parent / "printapp" / "samples" / "topography"
 
 
 def test_al3d_against_the_reference_values():

@@ -1,20 +1,24 @@
-"""Texture synthesis kernels for printapp: sparse convolution noise, fBm and turbulence.
+"""Texture synthesis kernels for printapp: sparse convolution noise, fBm, turbulence, veins, LIC.
 
 Pure numerics on arrays (numba kernels); no file I/O, no printing. Scattered points
-go through :func:`sparse_convolution`, :func:`fbm`, :func:`turbulence` and
-:func:`marble`; regular grids through the faster ``*_grid`` functions.
+go through :func:`sparse_convolution`, :func:`fbm`, :func:`turbulence`,
+:func:`unit_noise` and :func:`veins`; regular grids through the faster ``*_grid``
+functions. Also here, as the lowest room: :class:`noise.heightfield.HeightField` (the
+type tiles are exchanged in), counter-based hashing (:mod:`noise.hashing`), tangent
+frames (:mod:`noise.frames`), line integral convolution (:mod:`noise.lic`,
+:mod:`noise.surface`) and spectra (:mod:`noise.spectra`).
 """
 
 from noise.scn import (
     CELL_SEED_MODES,
     fbm,
     fbm_grid,
-    marble,
     octaves_for_pitch,
     sparse_convolution,
     sparse_convolution_grid,
     turbulence,
     turbulence_grid,
+    unit_noise,
 )
 from noise.veins import veins, veins_grid
 
@@ -22,12 +26,12 @@ __all__ = [
     "CELL_SEED_MODES",
     "fbm",
     "fbm_grid",
-    "marble",
     "octaves_for_pitch",
     "sparse_convolution",
     "sparse_convolution_grid",
     "turbulence",
     "turbulence_grid",
+    "unit_noise",
     "veins",
     "veins_grid",
 ]

@@ -11,13 +11,18 @@ from __future__ import annotations
 import io
 import math
 import zipfile
+from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numba import njit
 
 from noise.heightfield import HeightField
 from printapp.errors import PrintappError
+
+if TYPE_CHECKING:
+    from render.appearance import Appearance
 
 MESH_SUFFIXES = (".stl", ".ply", ".obj", ".off", ".3mf")
 REC709_LUMA = (0.2126, 0.7152, 0.0722)
@@ -208,3 +213,104 @@ def brdf_plot_png(appearance, title: str) -> bytes:
     fig.savefig(buffer, format="png")
     plt.close(fig)
     return buffer.getvalue()
+
+
+@dataclass(frozen=True)
+class PredictedFile:
+    """``printapp brdf``'s result: the prediction, the relief it came from, and the files written."""
+
+    predicted: Appearance
+    field: HeightField
+    origin: str
+    """What the relief is: the as-printed relief of a design, a height map, a mesh tile's top."""
+    written: list[Path]
+
+
+def predict_file(
+    source: Path,
+    out: Path,
+    *,
+    plot: Path | None = None,
+    json_out: Path | None = None,
+    ior: float | None = None,
+    body_albedo: float | None = None,
+    incident_deg: str | None = None,
+    rays: int = 200_000,
+    lobe_error: float | None = None,
+    max_rays: int = 100_000_000,
+    theta_bins: int = 45,
+    phi_bins: int = 90,
+    distribution: str = "auto",
+    seed: int | None = None,
+    periodic: bool = False,
+    width_mm: float | None = None,
+    depth_mm: float | None = None,
+    pitch_mm: float | None = None,
+    flatten: str | None = None,
+) -> PredictedFile:
+    """Predict the BRDF of a design (``.toml``: its as-printed relief and material), a mesh tile
+    (its top surface) or a height map, and write the table, the metrics and the plot.
+
+    Options left None take the design's values (index, grey body albedo, lobe error,
+    BRDF seed), else 1.5, 0.8, none and 0. All outputs are written, or none.
+    """
+    import json
+
+    from printapp.exporters import atomic_write_files
+    from printapp.topography import load_corrected
+    from render.appearance import DEFAULT_INCIDENT_DEG, predict_appearance
+
+    if out.suffix.lower() != ".npz":
+        raise PrintappError(f"{out}: expected an output file ending in .npz")
+    if plot is not None and plot.suffix.lower() != ".png":
+        raise PrintappError(f"{plot}: expected a plot file ending in .png")
+    incident = parse_incident(incident_deg) or DEFAULT_INCIDENT_DEG
+    suffix = source.suffix.lower()
+    design_ior, design_albedo, design_lobe_error, design_seed = 1.5, 0.8, None, 0
+    if suffix == ".toml":
+        from printapp.design import load_design
+        from printapp.relief import appearance_field
+
+        design = load_design(source)
+        field, origin = appearance_field(design)
+        design_ior = design.material.refractive_index
+        design_albedo = grey_albedo(design.material.body_albedo)
+        design_lobe_error = design.brdf.lobe_error
+        design_seed = design.brdf.seed
+    elif suffix in MESH_SUFFIXES:
+        field, origin = heightfield_from_mesh(source, pitch_mm), "mesh tile's top surface"
+    else:
+        corrected = load_corrected(
+            source, width_mm=width_mm, depth_mm=depth_mm, pitch_mm=pitch_mm, flatten=flatten
+        )
+        field, origin = corrected.field(), "height map"
+    n_ior = design_ior if ior is None else ior
+    rho = design_albedo if body_albedo is None else body_albedo
+    if not (1.0 <= n_ior <= 3.0):
+        raise PrintappError(f"--ior: expected a refractive index in [1, 3], got {n_ior:g}")
+    if not (0.0 <= rho <= 1.0):
+        raise PrintappError(f"--body-albedo: expected a value in [0, 1], got {rho:g}")
+    target = design_lobe_error if lobe_error is None else lobe_error
+    if target is not None and not (0.0 < target < 1.0):
+        raise PrintappError(f"--lobe-error: expected a fraction in (0, 1), e.g. 0.01, got {target:g}")
+    predicted = predict_appearance(
+        field,
+        ior=n_ior,
+        body_albedo=rho,
+        incident_deg=incident,
+        rays=rays,
+        n_theta=theta_bins,
+        n_phi=phi_bins,
+        seed=design_seed if seed is None else seed,
+        periodic=periodic,
+        distribution=distribution,
+        lobe_error_target=target,
+        max_rays=max_rays,
+    )
+    outputs = [(out, npz_bytes(brdf_arrays(predicted)))]
+    metrics = {"source": str(source), "from": origin, "grid": list(field.shape), **predicted.metrics}
+    if json_out is not None:
+        outputs.append((json_out, (json.dumps(metrics, indent=2) + "\n").encode()))
+    if plot is not None:
+        outputs.append((plot, brdf_plot_png(predicted, source.name)))
+    return PredictedFile(predicted, field, origin, atomic_write_files(outputs))

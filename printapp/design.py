@@ -9,9 +9,9 @@ degrees with every default filled in, and loads to the same design.
 
 from __future__ import annotations
 
-import difflib
 import math
 import tomllib
+from importlib.resources import as_file, files
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
@@ -20,8 +20,10 @@ import tomli_w
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from printapp.errors import DesignError
+from printapp.schema_errors import SchemaExplainer, short_repr
+from printapp.texture_kinds import TEXTURE_KIND_NAMES
 from printapp.tomlfile import read_toml
-from slicing import PRINTERS, PrinterProfile
+from slicing import PrinterProfile, find_printer
 
 # Unit suffixes a file may use, mapped to the internal field's suffix and the factor
 # that converts to it.
@@ -83,7 +85,8 @@ class MeshBase(_Section):
 class Texture(_Section):
     """The texture field: which noise, at which scale, with which seed."""
 
-    kind: Literal["scn", "fbm", "turbulence", "lic", "marble"] = "fbm"
+    kind: Literal[TEXTURE_KIND_NAMES] = "fbm"  # type: ignore[valid-type]
+    """One of :data:`printapp.texture_kinds.TEXTURE_KINDS`."""
     feature_size_mm: Annotated[float, at.Gt(0.0), at.Le(1000.0)] = 2.0
     """Size of one noise lattice cell (mm): the base octave's features are about this big."""
     seed: Annotated[int, at.Ge(0), at.Lt(2**63)] = 0
@@ -169,20 +172,17 @@ class Printer(_Section):
     @field_validator("name")
     @classmethod
     def _known_printer(cls, name: str) -> str:
-        if name not in PRINTERS:
-            close = difflib.get_close_matches(name, PRINTERS, n=1)
-            hint = f"; did you mean '{close[0]}'?" if close else ""
-            raise ValueError(f"unknown printer '{name}', expected one of {', '.join(sorted(PRINTERS))}{hint}")
+        find_printer(name)  # its UnknownPrinterError is a ValueError with the sentence
         return name
 
     @property
     def profile(self) -> PrinterProfile:
-        return PRINTERS[self.name]
+        return find_printer(self.name)
 
     @model_validator(mode="after")
     def _layer_in_range(self) -> Printer:
         lh = self.layer_height_mm
-        prof = PRINTERS[self.name]
+        prof = self.profile
         if lh is not None and not prof.min_layer_height_mm <= lh <= prof.max_layer_height_mm:
             raise ValueError(
                 f"layer_height_mm {lh:g} is outside what {prof.label} can print "
@@ -388,181 +388,7 @@ class Design(_Section):
 # ---------------------------------------------------------------------------------------------
 # Loading, with one clear sentence per problem
 
-
-def _field_info(model: type[BaseModel], loc: tuple[Any, ...]) -> tuple[type[BaseModel] | None, str | None]:
-    """Walk ``loc`` through nested models; return the innermost model and field name."""
-    current: type[BaseModel] | None = model
-    field: str | None = None
-    for part in loc:
-        if current is None or not isinstance(part, str):
-            continue
-        if part in ("tile", "mesh") and field == "base":
-            current = TileBase if part == "tile" else MeshBase
-            continue
-        if part not in current.model_fields:
-            return current, None
-        field = part
-        annotation = current.model_fields[part].annotation
-        nested = [a for a in getattr(annotation, "__args__", (annotation,)) if isinstance(a, type)]
-        current = next((a for a in nested if issubclass(a, BaseModel)), None)
-        if part == "base":
-            current = None
-    return current, field
-
-
-def _describe_range(model: type[BaseModel], name: str) -> str | None:
-    info = model.model_fields.get(name)
-    if info is None:
-        return None
-    bounds: dict[str, float] = {}
-    for meta in info.metadata:
-        for attr in ("gt", "ge", "lt", "le"):
-            if hasattr(meta, attr):
-                bounds[attr] = getattr(meta, attr)
-    annotation = info.annotation
-    for arg in getattr(annotation, "__args__", ()):
-        for meta in getattr(arg, "__metadata__", ()):
-            for attr in ("gt", "ge", "lt", "le"):
-                if hasattr(meta, attr):
-                    bounds[attr] = getattr(meta, attr)
-    if not bounds:
-        return None
-    lo = (
-        "(" + f"{bounds['gt']:g}"
-        if "gt" in bounds
-        else "[" + f"{bounds['ge']:g}"
-        if "ge" in bounds
-        else "(-inf"
-    )
-    hi = (
-        f"{bounds['lt']:g}" + ")"
-        if "lt" in bounds
-        else f"{bounds['le']:g}" + "]"
-        if "le" in bounds
-        else "inf)"
-    )
-    return f"{lo}, {hi}"
-
-
-def _parent_model(loc: tuple[Any, ...]) -> type[BaseModel]:
-    model, _ = _field_info(Design, loc[:-1]) if loc else (Design, None)
-    return model if model is not None else Design
-
-
-def _key_names(model: type[BaseModel]) -> list[str]:
-    names = list(model.model_fields)
-    for name in list(names):
-        for suffix, (internal, _) in _UNIT_ALIASES.items():
-            if name.endswith(internal):
-                names.append(name[: -len(internal)] + suffix)
-    return names
-
-
-def _dotted(loc: tuple[Any, ...]) -> str:
-    parts = []
-    for part in loc:
-        if part in ("tile", "mesh") and parts and parts[-1] == "base":
-            continue
-        if isinstance(part, int):
-            parts[-1] = f"{parts[-1]}[{part}]" if parts else f"[{part}]"
-        else:
-            parts.append(str(part))
-    return ".".join(parts) or "(top level)"
-
-
-def _short(value: Any) -> str:
-    text = repr(value)
-    return text if len(text) <= 60 else text[:57] + "..."
-
-
-def _alias_used(raw: Any, loc: tuple[Any, ...]) -> tuple[str, float, Any] | None:
-    """If the file gave ``loc``'s field under a unit alias, return (alias key, factor, raw value)."""
-    node = raw
-    for part in loc[:-1]:
-        if part in ("tile", "mesh"):
-            continue
-        if not isinstance(node, dict) or part not in node:
-            return None
-        node = node[part]
-    name = loc[-1] if loc else None
-    if not isinstance(node, dict) or not isinstance(name, str) or name in node:
-        return None
-    for suffix, (internal, factor) in _UNIT_ALIASES.items():
-        if name.endswith(internal):
-            alias = name[: -len(internal)] + suffix
-            if alias in node:
-                return alias, factor, node[alias]
-    return None
-
-
-def _explain(error: dict[str, Any], source: str, raw: Any = None) -> str:
-    loc = tuple(error["loc"])
-    where = _dotted(loc)
-    kind = error["type"]
-    alias = _alias_used(raw, loc)
-    if kind == "extra_forbidden":
-        parent = _parent_model(loc)
-        key = str(loc[-1])
-        close = difflib.get_close_matches(key, _key_names(parent), n=1, cutoff=0.5)
-        hint = (
-            f"; did you mean '{close[0]}'?" if close else f"; valid keys are {', '.join(_key_names(parent))}"
-        )
-        return f"{source}: unknown key '{where}'{hint}"
-    if kind == "missing":
-        return f"{source}: {where}: this key is required"
-    if kind in ("union_tag_invalid", "union_tag_not_found"):
-        return f'{source}: {where}: expected shape = "tile" or "mesh"'
-    value = _short(error.get("input"))
-    if kind == "value_error":
-        msg = str(error.get("ctx", {}).get("error", error["msg"]))
-        return f"{source}: {where}: {msg}" if loc else f"{source}: {msg}"
-    _, name = _field_info(Design, loc)
-    parent = _parent_model(loc)
-    field_name = name if name is not None else str(loc[-1]) if loc else ""
-    if kind in ("greater_than", "greater_than_equal", "less_than", "less_than_equal"):
-        rng = _describe_range(parent, field_name) if loc and isinstance(loc[-1], str) else None
-        if rng is None:
-            ops = {"gt": ">", "ge": ">=", "lt": "<", "le": "<="}
-            bound = " and ".join(f"{ops[k]} {v:g}" for k, v in error.get("ctx", {}).items() if k in ops)
-            return f"{source}: {where}: expected a value {bound}, got {value}"
-        if alias is not None:
-            key, factor, original = alias
-            lo, hi = rng.split(", ")
-            lo = lo[0] + (f"{float(lo[1:]) / factor:g}" if lo[1:] not in ("-inf",) else lo[1:])
-            hi = (f"{float(hi[:-1]) / factor:g}" if hi[:-1] != "inf" else "inf") + hi[-1]
-            where = _dotted(loc[:-1] + (key,))
-            return f"{source}: {where}: expected a value in {lo}, {hi}, got {_short(original)}"
-        return f"{source}: {where}: expected a value in {rng}, got {value}"
-    if kind == "finite_number":
-        return f"{source}: {where}: expected a finite number, got {value}"
-    if kind == "literal_error":
-        expected = error.get("ctx", {}).get("expected", "")
-        return f"{source}: {where}: expected one of {expected}, got {value}"
-    if kind.endswith("_type") or kind.endswith("_parsing") or kind in ("too_short", "too_long"):
-        wanted = {
-            "float_type": "a number",
-            "int_type": "an integer",
-            "string_type": "a string",
-            "bool_type": "true or false",
-            "tuple_type": "an array",
-            "model_type": "a table",
-            "dict_type": "a table",
-            "model_attributes_type": "a table",
-            "int_from_float": "an integer",
-            "too_short": "a longer value"
-            if not isinstance(error.get("input"), (list, tuple))
-            else "more items",
-            "too_long": "a shorter value"
-            if not isinstance(error.get("input"), (list, tuple))
-            else "fewer items",
-        }.get(kind, error["msg"].lower().replace("input should be ", ""))
-        if kind in ("too_short", "too_long") and isinstance(error.get("input"), (list, tuple)):
-            n = error.get("ctx", {}).get("min_length", error.get("ctx", {}).get("max_length"))
-            if n is not None:
-                wanted = f"an array of {n}"
-        return f"{source}: {where}: expected {wanted}, got {value}"
-    msg = error["msg"][0].lower() + error["msg"][1:]
-    return f"{source}: {where}: {msg}, got {value}"
+_EXPLAINER = SchemaExplainer(Design, "base", {"tile": TileBase, "mesh": MeshBase}, _UNIT_ALIASES)
 
 
 def design_from_dict(data: Any, source: str = "design") -> Design:
@@ -581,7 +407,7 @@ def design_from_dict(data: Any, source: str = "design") -> Design:
         errors = exc.errors(include_url=False)
         # An unknown key explains the rest of a table's errors best; report it first.
         errors.sort(key=lambda e: (e["type"] != "extra_forbidden", len(e["loc"])))
-        raise DesignError(_explain(errors[0], source, data)) from None
+        raise DesignError(_EXPLAINER.explain(errors[0], source, data)) from None
     except (TypeError, ValueError, OverflowError) as exc:
         raise DesignError(f"{source}: {exc}") from None
 
@@ -597,7 +423,7 @@ def _include_texture(data: Any, path: Path) -> Any:
     local = dict(data["texture"])
     name = local.pop("from")
     if not isinstance(name, str) or not name:
-        raise DesignError(f"{path}: texture.from: expected the name of a TOML file, got {_short(name)}")
+        raise DesignError(f"{path}: texture.from: expected the name of a TOML file, got {short_repr(name)}")
     source = Path(name) if Path(name).is_absolute() else path.parent / name
     try:
         fragment = tomllib.loads(source.read_bytes().decode("utf-8"))
@@ -650,7 +476,8 @@ def load_design(path: str | Path) -> Design:
     return design
 
 
-def _to_file_units(data: Any) -> Any:
+def to_file_units(data: Any) -> Any:
+    """A dumped design (or part of one) in file units: ``_rad`` keys back to ``_deg``, no ``None`` keys."""
     if isinstance(data, dict):
         out = {}
         for key, value in data.items():
@@ -660,10 +487,10 @@ def _to_file_units(data: Any) -> Any:
                 # 12 significant digits undo the radian round trip's last-bit noise.
                 out[key[:-4] + "_deg"] = float(f"{math.degrees(value):.12g}")
             else:
-                out[key] = _to_file_units(value)
+                out[key] = to_file_units(value)
         return out
     if isinstance(data, (list, tuple)):
-        return [_to_file_units(v) for v in data]
+        return [to_file_units(v) for v in data]
     return data
 
 
@@ -678,6 +505,16 @@ def resolved_toml(design: Design) -> str:
     if design.material.name is not None:
         # Derived from the named material, not settings: writing them would not load back.
         del dumped["material"]["refractive_index"], dumped["material"]["body_albedo"]
-    data = _to_file_units(dumped)
+    data = to_file_units(dumped)
     header = "# printapp design, resolved: every default filled in. Lengths in mm, angles in degrees.\n"
     return header + tomli_w.dumps(data)
+
+
+DEFAULT_DESIGN = files("printapp").joinpath("data/default_design.toml")
+"""The design ``printapp demo`` runs."""
+
+
+def load_default_design() -> Design:
+    """The built-in design that ``printapp demo`` runs."""
+    with as_file(DEFAULT_DESIGN) as path:
+        return load_design(path)

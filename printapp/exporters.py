@@ -255,3 +255,70 @@ class OutputFolder:
     ) -> None:
         if self._staging is not None:
             shutil.rmtree(self._staging, ignore_errors=True)
+
+
+MESH_SUFFIXES = (".stl", ".3mf", ".ply", ".obj")
+"""Mesh files printapp writes, chosen by the output's suffix."""
+
+
+def check_mesh_output(out: Path) -> None:
+    """Refuse an output name whose suffix is not a mesh format printapp writes.
+
+    Raises
+    ------
+    DesignError
+        Naming the file and the suffixes expected.
+    """
+    if out.suffix.lower() not in MESH_SUFFIXES:
+        raise DesignError(f"{out}: expected an output file ending in .stl, .3mf, .ply or .obj")
+
+
+def mesh_files(
+    out: Path,
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    *,
+    name: str | None = None,
+    refractive_index: float = 1.5,
+) -> list[tuple[Path, bytes]]:
+    """The file(s) that hold a mesh written as ``out``, by its suffix: ``(path, bytes)`` pairs.
+
+    ``.stl`` (binary), ``.3mf``, ``.ply`` (binary), or ``.obj`` with its ``.mtl`` beside it
+    (the resin's ``refractive_index`` as ``Ni``). ``name`` names the 3MF object (default:
+    the file's stem).
+    """
+    check_mesh_output(out)
+    suffix = out.suffix.lower()
+    if suffix == ".stl":
+        return [(out, stl_bytes(vertices, faces))]
+    if suffix == ".3mf":
+        return [(out, threemf_bytes(vertices, faces, name or out.stem))]
+    if suffix == ".ply":
+        return [(out, ply_bytes(vertices, faces))]
+    obj, mtl = obj_files(vertices, faces, out.stem, refractive_index)
+    return [(out, obj.encode("utf-8")), (out.with_suffix(".mtl"), mtl.encode("utf-8"))]
+
+
+def write_mesh(
+    out: Path,
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    *,
+    name: str | None = None,
+    refractive_index: float = 1.5,
+) -> list[Path]:
+    """Write a mesh by the output's suffix (see :func:`mesh_files`), all files or none."""
+    return atomic_write_files(mesh_files(out, vertices, faces, name=name, refractive_index=refractive_index))
+
+
+def png_bytes(image_srgb8: np.ndarray) -> bytes:
+    """An 8-bit RGB (or grey) image as PNG bytes (same pixels, same bytes)."""
+    import io
+
+    from PIL import Image
+
+    buffer = io.BytesIO()
+    Image.fromarray(np.asarray(image_srgb8, dtype=np.uint8)).save(
+        buffer, format="png", optimize=False, compress_level=6
+    )
+    return buffer.getvalue()

@@ -26,10 +26,9 @@ texture differ at every pixel.
 from __future__ import annotations
 
 import contextlib
-import io
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -37,31 +36,17 @@ import numpy as np
 
 from printapp.design import Texture
 from printapp.errors import PrintappError
-from printapp.fit_models import (
-    MODELS,
-    Distances,
-    Grid,
-    ModelFit,
-    NoiseLookup,
-    Target,
-    ValueMap,
-    distances,
-    exact_noise,
-    fit_model,
-    lookup_extent,
-    random_values,
-    unfitted,
-)
+from printapp.fit_measures import Distances, Target, ValueMap, distances
+from printapp.fit_models import MODELS, Grid, NoiseLookup, exact_noise
+from printapp.fit_search import ModelFit, fit_model, lookup_extent, random_values, unfitted
+from printapp.photo import LUMA, MIN_SIDE_PX, PALETTE_SIZE, Photo, hex_colour, luminance_palette, read_photo
 
-MIN_SIDE_PX = 32
-"""Smallest image side accepted: fewer pixels hold too few features to fit anything."""
 RELIABLE_SIDE_PX = 128
 """Images smaller than this have their score scaled down by the area ratio."""
 LOW_SCORE = 0.5
 """Scores below this come with a warning that the model does not explain the image."""
 DEFAULT_BUDGET = 160
 """Objective evaluations per model."""
-PALETTE_SIZE = 32
 METHOD = {
     "log_spectrum_distance": "RMS, over the frequency samples from 2/N to 0.4 cycles/px, of log10 of the "
     "ratio of the Hann-windowed periodograms averaged in polar bins (half an octave x 30 degrees)",
@@ -80,168 +65,6 @@ INVISIBLE = {"spectrum": 0.05, "histogram": 1.0 / 255.0, "glcm": 0.03}
 """Differences too small to see: 0.05 decades of power (12 %), one grey level, 0.03 of a GLCM statistic."""
 RANDOM_DRAWS = 5
 REPORT_GLCM_DISTANCES = (1, 2, 4, 8, 16)
-_LUMA = np.array([0.2126, 0.7152, 0.0722])
-
-
-@dataclass
-class Photo:
-    """A photo ready to fit: colours and luminance in [0, 1], rows running upwards (y up)."""
-
-    path: str
-    rgb: np.ndarray
-    lum: np.ndarray
-    original_px: tuple[int, int]
-    """(width, height) of the file, after EXIF orientation."""
-    notes: list[str] = field(default_factory=list)
-
-    @property
-    def analysed_px(self) -> tuple[int, int]:
-        return self.lum.shape[1], self.lum.shape[0]
-
-    @property
-    def downscale(self) -> float:
-        """Original pixels per analysed pixel."""
-        return self.original_px[0] / self.lum.shape[1]
-
-
-def _refuse(path: Path, what: str) -> PrintappError:
-    return PrintappError(f"{path}: {what}")
-
-
-def read_photo(path: str | Path, max_side: int = 512) -> Photo:
-    """Read an image file for fitting.
-
-    EXIF orientation is applied; palette, bilevel, CMYK and other modes are converted to
-    RGB or grey; 16-bit and 32-bit grey keep their precision; an alpha channel is
-    dropped when every pixel is opaque. The image is downsampled (Pillow's Lanczos
-    filter, in floating point) so that its longer side is at most ``max_side``.
-
-    Raises
-    ------
-    PrintappError
-        If the file is missing or unreadable, has transparent pixels, or is smaller than
-        :data:`MIN_SIDE_PX` on a side.
-    """
-    from PIL import Image, ImageOps, UnidentifiedImageError
-
-    path = Path(path)
-    if not path.exists():
-        raise _refuse(path, "no such image file")
-    if path.is_dir():
-        raise _refuse(path, "expected an image file, found a folder")
-    notes: list[str] = []
-    try:
-        with Image.open(path) as opened:
-            opened.load()
-            orientation = opened.getexif().get(0x0112, 1)
-            image = ImageOps.exif_transpose(opened)
-            if orientation in range(2, 9):
-                notes.append("EXIF orientation applied")
-            image.load()
-    except UnidentifiedImageError:
-        raise _refuse(path, "cannot read the image; expected a PNG, JPEG, WebP, TIFF or BMP file") from None
-    except Image.DecompressionBombError:
-        raise _refuse(
-            path, "the image is too large to open safely (Pillow's decompression-bomb limit)"
-        ) from None
-    except (OSError, SyntaxError, ValueError) as exc:
-        raise _refuse(path, f"cannot read the image ({exc})") from None
-    width, height = image.size
-    if min(width, height) < MIN_SIDE_PX:
-        raise _refuse(
-            path, f"the image is {width} x {height} px; expected at least {MIN_SIDE_PX} px on each side"
-        )
-    try:
-        channels = _channels(image, path, notes)
-    except (ValueError, OSError) as exc:
-        raise _refuse(path, f"cannot convert its {image.mode} pixels to RGB or grey ({exc})") from None
-    factor = max(width, height) / max_side
-    if factor > 1.0:
-        size = (max(1, round(width / factor)), max(1, round(height / factor)))
-        channels = [
-            np.asarray(
-                Image.fromarray(c.astype(np.float32), mode="F").resize(size, Image.Resampling.LANCZOS),
-                dtype=np.float64,
-            )
-            for c in channels
-        ]
-    planes = np.clip(np.stack(channels, axis=-1), 0.0, 1.0)[::-1]  # rows upwards
-    rgb = np.repeat(planes, 3, axis=-1) if planes.shape[-1] == 1 else planes
-    return Photo(str(path), rgb, rgb @ _LUMA, (width, height), notes)
-
-
-def _channels(image, path: Path, notes: list[str]) -> list[np.ndarray]:
-    """The image's colour channels as float arrays in [0, 1] (one for grey, three for colour)."""
-    mode = image.mode
-    if mode in ("P", "PA"):
-        notes.append("palette image converted to RGB")
-        image = image.convert("RGBA")
-        mode = "RGBA"
-    if mode in ("RGBA", "LA", "La", "RGBa"):
-        alpha = np.asarray(image.getchannel("A"))
-        if np.any(alpha < 255):
-            raise _refuse(
-                path,
-                f"{np.count_nonzero(alpha < 255)} pixels are transparent; expected an opaque photo "
-                "(flatten it onto a background first)",
-            )
-        notes.append("opaque alpha channel dropped")
-        image = image.convert("RGB" if mode in ("RGBA", "RGBa") else "L")
-        mode = image.mode
-    if mode.startswith("I;16"):
-        notes.append("16-bit grey")
-        return [np.asarray(image, dtype=np.float64) / 65535.0]
-    if mode == "I":
-        values = np.asarray(image, dtype=np.float64)
-        top = 65535.0 if values.max() <= 65535 else 4294967295.0
-        notes.append("16-bit grey" if top == 65535.0 else "32-bit grey")
-        return [values / top]
-    if mode == "F":
-        values = np.asarray(image, dtype=np.float64)
-        if not np.all(np.isfinite(values)):
-            raise _refuse(path, "the floating-point image has NaN or infinite pixels")
-        top = float(values.max())
-        return [values / top if top > 1.0 else values]
-    if mode in ("1", "L"):
-        return [np.asarray(image.convert("L"), dtype=np.float64) / 255.0]
-    rgb = np.asarray(image.convert("RGB"), dtype=np.float64) / 255.0
-    return [rgb[..., 0], rgb[..., 1], rgb[..., 2]]
-
-
-# ---------------------------------------------------------------------------------------------
-# Palette: the photo's colours ordered along luminance
-
-
-def luminance_palette(photo: Photo, size: int = PALETTE_SIZE) -> tuple[np.ndarray, np.ndarray]:
-    """The photo's mean colour at ``size`` luminances evenly spaced over its range.
-
-    Pixels are binned by luminance; a bin's colour is the mean of its pixels, and empty
-    bins are interpolated from their neighbours. Returns (luminance knots, (size, 3) colours).
-    """
-    lum = photo.lum.ravel()
-    rgb = photo.rgb.reshape(-1, 3)
-    lo, hi = float(lum.min()), float(lum.max())
-    knots = np.linspace(lo, hi, size)
-    if hi <= lo:
-        return knots, np.repeat(rgb[:1], size, axis=0)
-    which = np.clip(np.rint((lum - lo) / (hi - lo) * (size - 1)).astype(np.int64), 0, size - 1)
-    counts = np.bincount(which, minlength=size)
-    colours = np.empty((size, 3))
-    filled = counts > 0
-    for c in range(3):
-        sums = np.bincount(which, weights=rgb[:, c], minlength=size)
-        colours[filled, c] = sums[filled] / counts[filled]
-        colours[~filled, c] = np.interp(knots[~filled], knots[filled], colours[filled, c])
-    return knots, colours
-
-
-def _hex(colour: np.ndarray) -> str:
-    r, g, b = (int(round(float(np.clip(v, 0.0, 1.0)) * 255)) for v in colour)
-    return f"#{r:02x}{g:02x}{b:02x}"
-
-
-# ---------------------------------------------------------------------------------------------
-# The fit
 
 
 @dataclass
@@ -377,7 +200,7 @@ def fitted_texture(
         lum_knots, colours = luminance_palette(photo)
         lum = value_map(knots)
         palette = np.stack([np.interp(lum, lum_knots, colours[:, c]) for c in range(3)], axis=-1)
-        common["palette"] = tuple(_hex(c) for c in palette)
+        common["palette"] = tuple(hex_colour(c) for c in palette)
         common["palette_range"] = (float(knots[0]), float(knots[-1]))
     if name == "fbm":
         extra = {
@@ -421,11 +244,12 @@ def synthesise(texture: Texture, shape: tuple[int, int], scale_mm: float) -> np.
     marble gives its [0, 1] value whatever ``veins`` says.
     """
     from printapp.texture import evaluate_texture_grid
+    from printapp.texture_kinds import vein_sign
 
     x_mm = (np.arange(shape[1]) + 0.5) * scale_mm
     y_mm = (np.arange(shape[0]) + 0.5) * scale_mm
     values = evaluate_texture_grid(x_mm, y_mm, texture, scale_mm)
-    return -values if texture.kind == "marble" and texture.veins == "sunk" else values
+    return vein_sign(texture) * values
 
 
 def _reported_params(
@@ -488,7 +312,7 @@ def _report_model(
     texture = fitted_texture(name, fit.values, photo, scale_mm, seed, value_map, _palette_span(s, value_map))
 
     rgb = palette_colours(s, texture)
-    lum = rgb @ _LUMA
+    lum = rgb @ LUMA
     measures = distances(lum, target)
     left, right = _halves(lum)
     fit_halves = _mean_distances([distances(left, halves[1]), distances(right, halves[0])])
@@ -613,7 +437,7 @@ def fit_photo(
         from noise.spectra import random_phase
 
         phase_rgb = np.clip(random_phase(photo.rgb, seed), 0.0, 1.0)
-        phase_distances = distances(phase_rgb @ _LUMA, target)
+        phase_distances = distances(phase_rgb @ LUMA, target)
     if not constant:
         if min(photo.analysed_px) < RELIABLE_SIDE_PX:
             warnings.append(
@@ -651,89 +475,3 @@ def fit_photo(
         budget=budget,
         seconds=time.perf_counter() - start,
     )
-
-
-# ---------------------------------------------------------------------------------------------
-# Outputs
-
-
-def fitted_toml(result: FitResult) -> str:
-    """The design fragment: a [texture] table that `printapp design` and `printapp texture --from` read."""
-    import tomli_w
-
-    from printapp.design import _to_file_units
-
-    texture = result.chosen.texture
-    keys = {
-        "fbm": ["octaves", "lacunarity", "H"],
-        "turbulence": ["low", "high"],
-        "marble": [
-            "vein_angle_rad",
-            "vein_period_mm",
-            "turbulence_strength",
-            "vein_sharpness",
-            "low",
-            "high",
-            "veins",
-        ],
-    }[texture.kind]
-    dumped = texture.model_dump(mode="python")
-    names = ["kind", "feature_size_mm", "seed", *keys, "palette", "palette_range"]
-    data = _to_file_units({k: dumped[k] for k in names})
-    w_mm = result.photo.analysed_px[0] * result.scale_mm_per_px * result.photo.downscale
-    lines = [
-        f"# printapp fit: {result.chosen.name} fitted to {Path(result.photo.path).name}",
-        f"# ({result.photo.original_px[0]} x {result.photo.original_px[1]} px at "
-        f"{result.scale_mm_per_px:.6g} mm/px: the photo spans {w_mm:.6g} mm), score {result.score:.2f}",
-    ]
-    lines += [f"# warning: {w}" for w in result.warnings]
-    lines += [
-        "# Print it:   printapp design THIS_FILE   (a 20 mm tile with the defaults), or",
-        '#             [texture] from = "THIS_FILE" in your own design (keys beside it override).',
-        f"# Preview:    printapp texture --from THIS_FILE --width-mm {w_mm:.6g} "
-        f"--size {result.photo.analysed_px[0]} -o preview.png",
-        "",
-    ]
-    return "\n".join(lines) + tomli_w.dumps({"texture": data})
-
-
-def preview_png(result: FitResult) -> bytes:
-    """The photo and the fitted synthesis side by side, with a caption."""
-    from PIL import Image, ImageDraw
-
-    photo = _to_image(result.photo.rgb)
-    synth = _to_image(result.chosen.rgb)
-    gap = 8
-    caption = 18
-    w, h = photo.size
-    canvas = Image.new("RGB", (2 * w + gap, h + caption), (255, 255, 255))
-    canvas.paste(photo, (0, caption))
-    canvas.paste(synth, (w + gap, caption))
-    draw = ImageDraw.Draw(canvas)
-    draw.text((4, 3), "photo", fill=(0, 0, 0))
-    draw.text((w + gap + 4, 3), f"{result.chosen.name} fit, score {result.score:.2f}", fill=(0, 0, 0))
-    buffer = io.BytesIO()
-    canvas.save(buffer, format="PNG")
-    return buffer.getvalue()
-
-
-def _to_image(rgb: np.ndarray):
-    from PIL import Image
-
-    return Image.fromarray(np.round(np.clip(rgb[::-1], 0.0, 1.0) * 255).astype(np.uint8), mode="RGB")
-
-
-def write_outputs(
-    result: FitResult, toml_path: Path, preview_path: Path | None = None, json_path: Path | None = None
-) -> list[Path]:
-    """Write fitted.toml (and fit.png, metrics.json): all written first, then renamed into place."""
-    import json
-
-    from printapp.exporters import atomic_write_files
-
-    outputs: list[tuple[Path, bytes]] = [(toml_path, fitted_toml(result).encode())]
-    if preview_path is not None:
-        outputs.append((preview_path, preview_png(result)))
-    if json_path is not None:
-        outputs.append((json_path, (json.dumps(result.metrics(), indent=2) + "\n").encode()))
-    return atomic_write_files(outputs)

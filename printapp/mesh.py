@@ -279,3 +279,37 @@ def combine_solids(mesh: trimesh.Trimesh, operations) -> trimesh.Trimesh:
         faces=np.asarray(out.tri_verts, dtype=np.int64),
         process=False,
     )
+
+
+@dataclass(frozen=True)
+class WindingVerdict:
+    """What the layers' winding numbers say about a surface passing through itself."""
+
+    ok: bool
+    """False where the surface passes through itself (winding >= 1.5 in some layer)."""
+    slight: bool
+    """An overlap of less than half a pixel: noted, not failed (the printer cures the union)."""
+    message: str
+
+
+def winding_verdict(winding: float) -> WindingVerdict:
+    """Judge the largest pixel-averaged winding number of a model's layers.
+
+    Winding 1 inside a solid; 2 where the surface passes through itself. The printer
+    cures the union either way, so overlaps of less than half a pixel are noted, not failed.
+    """
+    if winding <= 1.01:
+        return WindingVerdict(True, False, "the layers show no self-overlap (winding number 1)")
+    if winding < 1.5:
+        return WindingVerdict(
+            True,
+            True,
+            f"the surface overlaps itself by less than half a pixel somewhere (pixel-averaged "
+            f"winding number {winding:.2f}); the printer cures the union",
+        )
+    return WindingVerdict(
+        False,
+        False,
+        f"the model overlaps itself (winding number {winding:.2f} in some layer): "
+        "its surface passes through itself",
+    )

@@ -1,4 +1,5 @@
-"""Design to outputs: relief, printable mesh, checks, predicted appearance, preview, files.
+"""Design to outputs: relief and printable mesh (:mod:`printapp.relief`), checks, predicted appearance,
+preview, files.
 
 Each stage is a pure function of the design (and its seed); files are staged and
 moved into place only at the end.
@@ -11,54 +12,25 @@ import math
 import platform
 from dataclasses import dataclass, field
 from importlib import metadata
-from importlib.resources import as_file, files
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-import trimesh
 
-from noise.heightfield import HeightField
 from printapp.brdf import brdf_arrays, npz_bytes
-from printapp.design import Design, MeshBase, TileBase, load_design, resolved_toml
-from printapp.exporters import OutputFolder, stl_bytes, threemf_bytes
-from printapp.fields import is_tile_field, surface_lic_values
+from printapp.design import Design, TileBase, resolved_toml
+from printapp.exporters import OutputFolder, png_bytes, stl_bytes, threemf_bytes
 from printapp.mesh import (
     SolidCheck,
     check_solid,
     combine_solids,
-    displace_along_normals,
-    load_closed_mesh,
-    refine_to_edge_length,
-    slab_from_heightfield,
+    winding_verdict,
 )
 from printapp.progress import StageTimer
-from printapp.texture import (
-    evaluate_texture,
-    evaluate_texture_grid,
-    normalise_peak_to_valley,
-    relief_heightfield,
-)
+from printapp.relief import as_printed, build_relief, fits_printer, slice_tile
 from render.microfacet import SlopeRoughness, slope_roughness
 from render.mitsuba_adapter import StudioLight
-from slicing import Slices, slice_heightfield, slice_mesh, write_sl1
-from slicing.printed import pixel_centres_mm, printed_heights
-
-DEFAULT_DESIGN = files("printapp").joinpath("data/default_design.toml")
-_PATCH_FEATURES = 12.0  # side of the flat patch used for appearance statistics, in base-octave features
-
-
-@dataclass
-class Relief:
-    """The printable model and what was measured on it."""
-
-    mesh: trimesh.Trimesh
-    patch: HeightField
-    """A flat patch of the relief, at the design's pitch and amplitude scale, for appearance."""
-    undisplaced: trimesh.Trimesh | None = None
-    """For mesh bases: the refined mesh before displacement (same faces as ``mesh``)."""
-    softened_vertices: int = 0
-    """For mesh bases: vertices whose relief was lowered so that no triangle folds."""
+from slicing import slice_mesh, write_sl1
 
 
 @dataclass
@@ -70,128 +42,6 @@ class Outcome:
     passed: bool
     reasons: list[str] = field(default_factory=list)
     render_warning: str | None = None
-
-
-def build_relief(design: Design, base: trimesh.Trimesh | None = None) -> Relief:
-    """The displaced, closed model of a design (mm) and a flat patch of its relief.
-
-    ``base`` replaces loading the design's mesh file (e.g. a repaired mesh).
-    """
-    texture = design.texture
-    pitch = design.pitch_mm
-    if isinstance(design.base, TileBase):
-        field_ = relief_heightfield(design)
-        return Relief(mesh=slab_from_heightfield(field_, design.base.thickness_mm), patch=field_)
-    assert isinstance(design.base, MeshBase)
-    if base is None:
-        base = load_closed_mesh(design.base.path, design.base.scale)
-    if texture.kind == "lic":
-        # The smeared noise varies on the scale of its features across the streamlines:
-        # two vertices per feature resolve it.
-        edge = max(texture.feature_size_mm / 2.0, pitch)
-        refined = refine_to_edge_length(base, edge)
-        raw = surface_lic_values(refined, texture, step_mm=pitch, base=base)
-    else:
-        # Four vertices per base-octave feature along an edge resolve the relief's shape;
-        # finer than the printer's pixel is wasted.
-        edge = max(texture.feature_size_mm / 4.0, pitch)
-        refined = refine_to_edge_length(base, edge)
-        raw = evaluate_texture(np.asarray(refined.vertices), texture, pitch_mm=edge)
-    lo, hi = float(raw.min()), float(raw.max())
-    mesh, softened = displace_along_normals(
-        refined, normalise_peak_to_valley(raw, design.relief.amplitude_mm)
-    )
-    # A flat patch of the same texture on the mesh's value-to-height scale, so that its
-    # slopes are the mesh's (for a mesh-only lic field, a constant field: the same slope
-    # statistics up to a rotation).
-    side = _PATCH_FEATURES * max(texture.feature_size_mm, texture.length_mm if texture.kind == "lic" else 0.0)
-    n = max(3, min(1024, round(side / pitch) + 1))
-    step = side / (n - 1)
-    patch_texture = texture
-    if texture.kind == "lic" and not is_tile_field(texture.field):
-        patch_texture = texture.model_copy(update={"field": "constant:0"})
-    values = evaluate_texture_grid(np.arange(n) * step, np.arange(n) * step, patch_texture, step)
-    scale = design.relief.amplitude_mm / (hi - lo) if hi > lo else 0.0
-    return Relief(
-        mesh=mesh,
-        patch=HeightField((values - lo) * scale, step, step),
-        undisplaced=refined,
-        softened_vertices=softened,
-    )
-
-
-@dataclass
-class AsPrinted:
-    """The printed relief of a tile (as a height field at the printer's pixels) and its error."""
-
-    field: HeightField
-    rms_error_mm: float
-    max_error_mm: float
-
-
-def as_printed(design_field: HeightField, slices: Slices, base_thickness_mm: float) -> AsPrinted:
-    """What the printer makes of a tile: printed heights at pixel centres, against the design.
-
-    The comparison uses pixels at least one pixel inside the tile's edges (the walls'
-    grey pixels are not relief), the design interpolated bilinearly at the pixel centres.
-    """
-    from scipy.interpolate import RegularGridInterpolator
-
-    heights = printed_heights(slices)
-    x, y = pixel_centres_mm(slices)
-    xd = x - slices.shift_mm[0] - design_field.origin_x_mm
-    yd = y - slices.shift_mm[1] - design_field.origin_y_mm
-    px, py = slices.profile.pitch_x_mm, slices.profile.pitch_y_mm
-    cols = np.nonzero((xd > px) & (xd < design_field.width_mm - px))[0]
-    rows = np.nonzero((yd > py) & (yd < design_field.depth_mm - py))[0]
-    window = heights[rows[0] : rows[-1] + 1, cols[0] : cols[-1] + 1]
-    ny, nx = design_field.shape
-    interpolate = RegularGridInterpolator(
-        (np.arange(ny) * design_field.pitch_y_mm, np.arange(nx) * design_field.pitch_x_mm),
-        design_field.heights_mm,
-    )
-    yy, xx = np.meshgrid(yd[rows], xd[cols], indexing="ij")
-    designed = (
-        interpolate(np.column_stack([yy.ravel(), xx.ravel()])).reshape(window.shape) + base_thickness_mm
-    )
-    error = window - designed
-    return AsPrinted(
-        field=HeightField(window - base_thickness_mm, px, py, float(xd[cols[0]]), float(yd[rows[0]])),
-        rms_error_mm=float(np.sqrt(np.mean(error**2))),
-        max_error_mm=float(np.max(np.abs(error))),
-    )
-
-
-def appearance_field(design: Design, relief: Relief | None = None) -> tuple[HeightField, str]:
-    """The relief whose appearance a design predicts, and what it is.
-
-    For a tile, what the printer makes of it (sliced and read back); for a mesh or a
-    tile with booleans, a flat patch of the designed relief.
-    """
-    relief = relief or build_relief(design)
-    if isinstance(design.base, TileBase) and not design.combine:
-        slices = slice_tile(design, relief.patch)
-        return as_printed(relief.patch, slices, design.base.thickness_mm).field, "as-printed relief"
-    return relief.patch, "designed relief"
-
-
-def slice_tile(design: Design, patch: HeightField) -> Slices:
-    """A tile's layers straight from its height field: the same layers as slicing the slab, no mesh."""
-    assert isinstance(design.base, TileBase)
-    return slice_heightfield(
-        patch,
-        design.base.thickness_mm,
-        design.printer.profile,
-        layer_height_mm=design.layer_height_mm,
-    )
-
-
-def fits_printer(design: Design, solid: SolidCheck) -> bool:
-    """Whether the model fits the printer's display and height, in either orientation."""
-    profile = design.printer.profile
-    sx, sy, sz = solid.size_mm
-    w, d = profile.display_width_mm, profile.display_height_mm
-    return ((sx <= w and sy <= d) or (sx <= d and sy <= w)) and sz <= profile.max_print_height_mm
 
 
 def verify(
@@ -324,16 +174,15 @@ def run_design(
     ``report.html`` and ``manifest.json``. When verification fails, the model files are written only with
     ``force``; everything else is written so that the user can see why.
     """
-    from PIL import Image
 
     from printapp.rendering import light_sweep, predict_for_design, render_preview
-    from printapp.report import png_bytes, report_html, sweep_settings
+    from printapp.report import report_html, sweep_settings
     from render.mitsuba_adapter import choose_variant, to_srgb8
 
     with OutputFolder(out_dir) as out, StageTimer(quiet=quiet) as timer:
         named_material = None
         if design.material.name is not None:
-            from printapp.materials import derive_design_material, render_choice
+            from printapp.material_design import derive_design_material, render_choice
 
             with timer.stage("material", "material optics (Lorenz-Mie)"):
                 # Every later stage sees the index and body albedo derived from the particles.
@@ -385,27 +234,12 @@ def run_design(
             passed, failed = verify(design, solid, appearance, image, predicted.metrics)
             winding = slices.max_winding() if slices is not None else None
             if winding is not None:
-                # Winding 1 inside a solid; 2 where the surface passes through itself. The
-                # printer cures the union either way, so overlaps of less than half a pixel
-                # are noted, not failed.
-                if winding <= 1.01:
-                    passed.append("the layers show no self-overlap (winding number 1)")
-                elif winding < 1.5:
-                    passed.append(
-                        f"the surface overlaps itself by less than half a pixel somewhere (pixel-averaged "
-                        f"winding number {winding:.2f}); the printer cures the union"
-                    )
-                else:
-                    failed.append(
-                        f"the model overlaps itself (winding number {winding:.2f} in some layer): "
-                        "its surface passes through itself"
-                    )
+                overlap = winding_verdict(winding)
+                (passed if overlap.ok else failed).append(overlap.message)
         ok = not failed
         with timer.stage("write", "writing outputs"):
             if image is not None:
-                Image.fromarray(to_srgb8(image)).save(
-                    out.path("preview.png"), optimize=False, compress_level=6
-                )
+                out.write_bytes("preview.png", png_bytes(to_srgb8(image)))
             out.write_text("design.resolved.toml", resolved_toml(design))
             out.write_bytes("brdf.npz", npz_bytes(brdf_arrays(predicted)))
             if ok or force:
@@ -536,9 +370,3 @@ def run_design(
         reasons=failed,
         render_warning=None if choice is None else choice.warning,
     )
-
-
-def load_default_design() -> Design:
-    """The built-in design that ``printapp demo`` runs."""
-    with as_file(DEFAULT_DESIGN) as path:
-        return load_design(path)

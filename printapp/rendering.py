@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
-from typing import Any
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import trimesh
@@ -13,6 +14,12 @@ from noise.heightfield import HeightField
 from printapp.brdf import grey_albedo
 from printapp.design import Design, TileBase
 from printapp.mesh import slab_from_heightfield
+
+if TYPE_CHECKING:
+    from printapp.relief import Relief
+    from render.appearance import Appearance
+    from render.mitsuba_adapter import StudioLight, TableSurface
+    from render.translucency import MediumRGB
 
 
 @dataclass
@@ -27,7 +34,7 @@ class Preview:
     warning: str | None
 
 
-def predict_for_design(design: Design, field: HeightField) -> Any:
+def predict_for_design(design: Design, field: HeightField) -> Appearance:
     """The predicted appearance (:func:`render.appearance.predict_appearance`) of a design's relief."""
     from render.appearance import predict_appearance
 
@@ -44,7 +51,7 @@ def predict_for_design(design: Design, field: HeightField) -> Any:
     )
 
 
-def base_shape(design: Design, relief: Any) -> trimesh.Trimesh | None:
+def base_shape(design: Design, relief: Relief) -> trimesh.Trimesh | None:
     """The smooth shape under the relief, for the BRDF representations (None with booleans).
 
     A tile's base is the slab at the relief's mean height (so that it stands where the
@@ -64,14 +71,14 @@ def base_shape(design: Design, relief: Any) -> trimesh.Trimesh | None:
 
 def render_preview(
     design: Design,
-    relief: Any,
+    relief: Relief,
     mesh: trimesh.Trimesh,
-    predicted: Any,
+    predicted: Appearance,
     appearance_field: HeightField,
     *,
-    medium: Any = None,
-    light: Any = None,
-    tables: dict[str, Any] | None = None,
+    medium: MediumRGB | None = None,
+    light: StudioLight | None = None,
+    tables: dict[str, TableSurface] | None = None,
 ) -> Preview:
     """Path-trace the design with the representation its camera needs (``design.render.mode``).
 
@@ -162,16 +169,16 @@ def sweep_azimuths_rad(camera_azimuth_rad: float, frames: int) -> list[float]:
 
 def light_sweep(
     design: Design,
-    relief: Any,
+    relief: Relief,
     mesh: trimesh.Trimesh,
-    predicted: Any,
+    predicted: Appearance,
     appearance_field: HeightField,
     *,
     frames: int = 6,
     width_px: int = 160,
     height_px: int = 120,
     spp: int = 8,
-    medium: Any = None,
+    medium: MediumRGB | None = None,
 ) -> np.ndarray:
     """The light circling the object in ``frames`` steps, side by side: an anisotropic highlight moves.
 
@@ -197,3 +204,45 @@ def light_sweep(
             ).image
         )
     return np.concatenate(strip, axis=1)
+
+
+def render_design_file(
+    design_file: Path,
+    out: Path,
+    *,
+    mode: str = "auto",
+    spp: int | None = None,
+    distance_scale: float | None = None,
+    sweep: Path | None = None,
+) -> tuple[Design, Preview, list[Path]]:
+    """``printapp render``: path-trace a design's predicted appearance, and optionally a light sweep.
+
+    ``mode``, ``spp`` and ``distance_scale`` override the design's ``[render]`` table
+    (None keeps the design's). Both images are written, or neither.
+    """
+    from printapp.design import load_design
+    from printapp.errors import PrintappError
+    from printapp.exporters import atomic_write_files, png_bytes
+    from printapp.mesh import combine_solids
+    from printapp.relief import appearance_field, build_relief
+    from render.mitsuba_adapter import to_srgb8
+
+    for path in (out, sweep):
+        if path is not None and path.suffix.lower() != ".png":
+            raise PrintappError(f"{path}: expected an image file ending in .png")
+    design = load_design(design_file)
+    updates: dict[str, Any] = {"mode": mode}
+    if spp is not None:
+        updates["spp"] = spp
+    if distance_scale is not None:
+        updates["distance_scale"] = distance_scale
+    design = design.model_copy(update={"render": design.render.model_copy(update=updates)})
+    relief = build_relief(design)
+    mesh = combine_solids(relief.mesh, design.combine) if design.combine else relief.mesh
+    field, _ = appearance_field(design, relief)
+    predicted = predict_for_design(design, field)
+    preview = render_preview(design, relief, mesh, predicted, field)
+    outputs = [(out, png_bytes(to_srgb8(preview.image)))]
+    if sweep is not None:
+        outputs.append((sweep, png_bytes(to_srgb8(light_sweep(design, relief, mesh, predicted, field)))))
+    return design, preview, atomic_write_files(outputs)

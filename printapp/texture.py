@@ -7,22 +7,9 @@ from pathlib import Path
 
 import numpy as np
 
-import noise
 from noise.heightfield import HeightField
 from printapp.design import Design, Texture, TileBase
-
-
-def to_noise_units(points_mm: np.ndarray, texture: Texture) -> np.ndarray:
-    """Map points (mm) to noise coordinates: stretch along ``angle``, then one cell per feature size."""
-    pts = np.array(points_mm, dtype=np.float64, copy=True)
-    if texture.stretch != 1.0:
-        c, s = math.cos(texture.angle_rad), math.sin(texture.angle_rad)
-        u = c * pts[:, 0] + s * pts[:, 1]
-        v = -s * pts[:, 0] + c * pts[:, 1]
-        u /= texture.stretch
-        pts[:, 0] = c * u - s * v
-        pts[:, 1] = s * u + c * v
-    return pts / texture.feature_size_mm
+from printapp.texture_kinds import stretch_to_noise_units, texture_kind, vein_sign
 
 
 def evaluate_texture(points_mm: np.ndarray, texture: Texture, pitch_mm: float | None = None) -> np.ndarray:
@@ -31,42 +18,11 @@ def evaluate_texture(points_mm: np.ndarray, texture: Texture, pitch_mm: float | 
     ``pitch_mm`` (the sampling pitch) drops fBm/turbulence octaves finer than two
     samples: a printer cannot reproduce them, and sampling them would alias.
     """
-    if texture.kind == "lic":
-        raise ValueError("lic textures are evaluated on grids or meshes, not at scattered points")
-    pts = to_noise_units(points_mm, texture)
+    kind = texture_kind(texture.kind)
+    if kind.points is None:
+        raise ValueError(f"{kind.name} textures are evaluated on grids or meshes, not at scattered points")
     pitch = None if pitch_mm is None else pitch_mm / texture.feature_size_mm
-    common = {"seed": texture.seed, "impulses": texture.impulses, "cell_seed": texture.cell_seed}
-    if texture.kind == "scn":
-        return noise.sparse_convolution(pts, **common)
-    if texture.kind == "fbm":
-        return noise.fbm(
-            pts,
-            octaves=texture.octaves,
-            lacunarity=texture.lacunarity,
-            H=texture.H,
-            min_pitch=pitch,
-            **common,
-        )
-    if texture.kind == "marble":
-        return _vein_sign(texture) * noise.veins(pts, **_vein_options(texture), min_pitch=pitch, **common)
-    return noise.turbulence(pts, low=texture.low, high=texture.high, min_pitch=pitch, **common)
-
-
-def _vein_options(texture: Texture) -> dict[str, float | int]:
-    """The marble's parameters in noise units (one turbulence cell per unit)."""
-    return {
-        "angle": texture.vein_angle_rad,
-        "period": texture.vein_period_mm / texture.feature_size_mm,
-        "strength": texture.turbulence_strength,
-        "sharpness": texture.vein_sharpness,
-        "low": texture.low,
-        "high": texture.high,
-    }
-
-
-def _vein_sign(texture: Texture) -> float:
-    """Relief sign of a marble: veins (value 1) up when raised, down when sunk."""
-    return -1.0 if texture.veins == "sunk" else 1.0
+    return kind.points(stretch_to_noise_units(points_mm, texture), texture, pitch)
 
 
 def normalise_peak_to_valley(values: np.ndarray, amplitude_mm: float) -> np.ndarray:
@@ -85,48 +41,17 @@ def tile_grid_shape(base: TileBase, pitch_mm: float) -> tuple[int, int, float, f
 
 
 def evaluate_texture_grid(
-    x_mm: np.ndarray, y_mm: np.ndarray, texture: Texture, pitch_mm: float
+    x_mm: np.ndarray, y_mm: np.ndarray, texture: Texture, pitch_mm: float | None
 ) -> np.ndarray:
     """Raw texture values on the grid ``x_mm`` by ``y_mm`` (z = 0), shaped (len(y), len(x)).
 
-    Uses the noise package's grid fast path when the texture's axes line up with the
-    grid (no stretch, or a stretch along x); otherwise evaluates the points one by one.
+    Uses the kind's grid fast path when the texture's axes line up with the grid (no
+    stretch, or a stretch along x, or LIC); otherwise evaluates the points one by one.
+    ``pitch_mm`` None keeps every octave (``printapp texture``); a design passes its pitch.
     """
-    if texture.kind == "lic":
-        from noise.lic import lic2d
-        from printapp.fields import field_on_grid
-
-        noise_values = noise.sparse_convolution_grid(
-            x_mm / texture.feature_size_mm,
-            y_mm / texture.feature_size_mm,
-            seed=texture.seed,
-            impulses=texture.impulses,
-            cell_seed=texture.cell_seed,
-        )
-        u, v = field_on_grid(texture.field, x_mm, y_mm)
-        return lic2d(u, v, noise_values, length=max(texture.length_mm / pitch_mm, 1.0))
-    if texture.stretch == 1.0 or texture.angle_rad == 0.0:
-        xs = x_mm / (texture.feature_size_mm * texture.stretch)
-        ys = y_mm / texture.feature_size_mm
-        pitch = pitch_mm / texture.feature_size_mm
-        common = {"seed": texture.seed, "impulses": texture.impulses, "cell_seed": texture.cell_seed}
-        if texture.kind == "scn":
-            return noise.sparse_convolution_grid(xs, ys, **common)
-        if texture.kind == "fbm":
-            return noise.fbm_grid(
-                xs,
-                ys,
-                octaves=texture.octaves,
-                lacunarity=texture.lacunarity,
-                H=texture.H,
-                min_pitch=pitch,
-                **common,
-            )
-        if texture.kind == "marble":
-            return _vein_sign(texture) * noise.veins_grid(
-                xs, ys, **_vein_options(texture), min_pitch=pitch, **common
-            )
-        return noise.turbulence_grid(xs, ys, low=texture.low, high=texture.high, min_pitch=pitch, **common)
+    kind = texture_kind(texture.kind)
+    if kind.points is None or texture.stretch == 1.0 or texture.angle_rad == 0.0:
+        return kind.grid(x_mm, y_mm, texture, pitch_mm)
     xx, yy = np.meshgrid(x_mm, y_mm)
     pts = np.column_stack([xx.ravel(), yy.ravel()])
     return evaluate_texture(pts, texture, pitch_mm=pitch_mm).reshape(len(y_mm), len(x_mm))
@@ -144,7 +69,7 @@ def palette_colours(values: np.ndarray, texture: Texture) -> np.ndarray:
     colours = np.array([[int(c[i : i + 2], 16) / 255.0 for i in (1, 3, 5)] for c in palette])
     if texture.palette_range is not None:
         lo, hi = texture.palette_range
-    elif texture.kind == "marble":
+    elif texture_kind(texture.kind).unit_range:
         lo, hi = 0.0, 1.0
     else:
         lo, hi = float(values.min()), float(values.max())
@@ -154,17 +79,6 @@ def palette_colours(values: np.ndarray, texture: Texture) -> np.ndarray:
         t = np.clip((np.asarray(values, dtype=np.float64) - lo) / (hi - lo), 0.0, 1.0)
     knots = np.linspace(0.0, 1.0, len(colours))
     return np.stack([np.interp(t, knots, colours[:, c]) for c in range(3)], axis=-1)
-
-
-def texture_colour_grid(x_mm: np.ndarray, y_mm: np.ndarray, texture: Texture, pitch_mm: float) -> np.ndarray:
-    """The texture on the grid ``x_mm`` by ``y_mm`` coloured by its palette: (len(y), len(x), 3) sRGB.
-
-    Marble is coloured by its [0, 1] value whether its veins are raised or sunk.
-    """
-    values = evaluate_texture_grid(x_mm, y_mm, texture, pitch_mm)
-    if texture.kind == "marble":
-        values = _vein_sign(texture) * values
-    return palette_colours(values, texture)
 
 
 def relief_heightfield(design: Design) -> HeightField:
@@ -204,9 +118,7 @@ def write_texture_from_file(path: Path, out: Path, size: int, width_mm: float | 
     pitch = width_mm / size
     axis = (np.arange(size) + 0.5) * pitch
     texture = design.texture
-    values = evaluate_texture_grid(axis, axis, texture, pitch)
-    if texture.kind == "marble":
-        values = _vein_sign(texture) * values
+    values = vein_sign(texture) * evaluate_texture_grid(axis, axis, texture, pitch)
     buffer = io.BytesIO()
     if out.suffix.lower() == ".npy":
         np.save(buffer, values)
@@ -221,3 +133,58 @@ def write_texture_from_file(path: Path, out: Path, size: int, width_mm: float | 
         f"{texture.kind} from {path}: {size}x{size} px over {width_mm:g} mm, "
         f"values {values.min():.4g}..{values.max():.4g}; wrote {out}"
     )
+
+
+# Flags of ``printapp texture`` named by the kernels' ValueErrors ("name: expected ...").
+_FLAG_OF_KERNEL_NAME = {
+    "angle": "--vein-angle-deg",
+    "period": "--vein-period",
+    "strength": "--turbulence-strength",
+    "sharpness": "--sharpness",
+}
+
+
+def texture_image(kind: str, size: int, cells: float, options: dict[str, object]) -> np.ndarray:
+    """Values of a texture KIND on a ``size`` x ``size`` image, ``cells`` noise cells across.
+
+    The image is the kind's grid evaluation with one pixel per millimetre and a feature
+    size of ``size / cells`` pixels, every octave kept. ``options`` are ``[texture]``
+    fields (internal names, lengths in pixels: ``vein_period_mm``, ``length_mm``). The
+    kernels check the values; their complaints come back naming the command's flags.
+
+    Raises
+    ------
+    PrintappError
+        Naming the flag that is out of range, or the field image that cannot be read.
+    """
+    from printapp.errors import PrintappError
+
+    spec = texture_kind(kind)
+    # No validation here on purpose: the command's ranges are wider than a design's (a
+    # texture image may have 24 octaves), and the kernels check what they need.
+    texture = Texture.model_construct(kind=kind, feature_size_mm=size / cells, **options)
+    pixels = np.arange(size) + 0.5
+    try:
+        return spec.grid(pixels, pixels, texture, None if spec.points is not None else 1.0)
+    except ValueError as exc:
+        name, _, rest = str(exc).partition(":")
+        if name.startswith("expected"):  # from the field spec parser
+            raise PrintappError(f"--field: {exc}") from None
+        flag = _FLAG_OF_KERNEL_NAME.get(name, f"--{name.replace('_', '-')}")
+        raise PrintappError(f"{flag}:{rest}") from None
+
+
+def grey_png_bytes(values: np.ndarray, unit_range: bool) -> bytes:
+    """An 8-bit grey PNG of ``values`` (row 0 at the top): [0, 1] clipped, or stretched min..max."""
+    import io
+
+    from PIL import Image
+
+    if unit_range:
+        unit = np.clip(values, 0.0, 1.0)
+    else:
+        span = float(values.max() - values.min())
+        unit = (values - values.min()) / span if span > 0 else np.zeros_like(values)
+    buffer = io.BytesIO()
+    Image.fromarray(np.round(unit[::-1] * 255).astype(np.uint8), mode="L").save(buffer, format="PNG")
+    return buffer.getvalue()

@@ -333,3 +333,153 @@ def roughness(heights_mm: np.ndarray, pitch_x_mm: float, pitch_y_mm: float) -> R
         sdq=math.sqrt(float(np.mean(g2[gvalid]))),
         sdr_percent=float(np.mean(np.sqrt(1.0 + g2[gvalid])) - 1.0) * 100.0,
     )
+
+
+# ---------------------------------------------------------------------------------------------
+# What the commands ask for: read, crop, correct, describe
+
+
+def flatten_order(flatten: str | None) -> int | None:
+    """Polynomial order of ``--flatten``: ``plane`` is 1, ``poly:K`` is K (0..8), None leaves the map.
+
+    Raises
+    ------
+    DesignError
+        For any other text.
+    """
+    if flatten is None:
+        return None
+    if flatten == "plane":
+        return 1
+    kind, _, degree = flatten.partition(":")
+    if kind == "poly" and degree.isdigit() and 0 <= int(degree) <= 8:
+        return int(degree)
+    raise DesignError(f"--flatten: expected 'plane' or 'poly:K' with K in 0..8, got '{flatten}'")
+
+
+def crop_window(crop: str | None, shape: tuple[int, int]) -> tuple[slice, slice]:
+    """Rows and columns kept by ``--crop C0:C1,R0:R1`` (samples) from a map of ``shape``.
+
+    Raises
+    ------
+    DesignError
+        If the text is malformed or the window is not at least 2 x 2 samples inside the map.
+    """
+    if crop is None:
+        return slice(None), slice(None)
+    try:
+        cols, rows = crop.split(",")
+        c0, c1 = (int(v) for v in cols.split(":"))
+        r0, r1 = (int(v) for v in rows.split(":"))
+    except ValueError:
+        raise DesignError(f"--crop: expected 'C0:C1,R0:R1' in samples, got '{crop}'") from None
+    if not (0 <= c0 < c1 <= shape[1] and 0 <= r0 < r1 <= shape[0] and c1 - c0 >= 2 and r1 - r0 >= 2):
+        raise DesignError(
+            f"--crop: '{crop}' is not a window of at least 2 x 2 samples inside {shape[1]} x {shape[0]}"
+        )
+    return slice(r0, r1), slice(c0, c1)
+
+
+@dataclass(frozen=True)
+class Corrected:
+    """A height map after cropping, filling and levelling."""
+
+    heights_mm: np.ndarray
+    pitch_x_mm: float
+    pitch_y_mm: float
+    filled: int
+    """Samples that were missing (or masked as outliers) and were filled in."""
+
+    def field(self) -> HeightField:
+        return HeightField(self.heights_mm, self.pitch_x_mm, self.pitch_y_mm)
+
+
+def load_corrected(
+    path: Path,
+    *,
+    width_mm: float | None = None,
+    depth_mm: float | None = None,
+    pitch_mm: float | None = None,
+    remove_outliers: bool = False,
+    flatten: str | None = None,
+    crop: str | None = None,
+) -> Corrected:
+    """Read a height map (:func:`read_heightmap`), crop it, and apply the corrections.
+
+    Missing data is always filled (:func:`fill_masked`); outliers are masked and filled
+    only with ``remove_outliers``; ``flatten`` levels the base (:func:`flatten_order`).
+    """
+    order = flatten_order(flatten)
+    topo = read_heightmap(path, width_mm=width_mm, depth_mm=depth_mm, pitch_mm=pitch_mm)
+    heights = topo.heights_mm[crop_window(crop, topo.heights_mm.shape)]
+    mask = mask_outliers(heights) if remove_outliers else ~np.isfinite(heights)
+    heights = fill_masked(heights, mask)
+    if order is not None:
+        heights = level(heights, order)
+    return Corrected(heights, topo.pitch_x_mm, topo.pitch_y_mm, int(mask.sum()))
+
+
+def roughness_summary(source: Path, corrected: Corrected, flatten: str | None) -> dict[str, object]:
+    """What ``printapp heightmap`` reports: the map's size and pitch and its ISO 25178 parameters."""
+    r = roughness(corrected.heights_mm, corrected.pitch_x_mm, corrected.pitch_y_mm)
+    return {
+        "file": str(source),
+        "samples": list(corrected.heights_mm.shape),
+        "pitch_um": [corrected.pitch_x_mm * 1000, corrected.pitch_y_mm * 1000],
+        "filled_samples": corrected.filled,
+        "flatten": flatten,
+        "parameters": {
+            "Sa_um": r.sa_um,
+            "Sq_um": r.sq_um,
+            "Sz_um": r.sz_um,
+            "Ssk": r.ssk,
+            "Sku": r.sku,
+            "Sdq": r.sdq,
+            "Sdr_percent": r.sdr_percent,
+        },
+    }
+
+
+def analyse_heightmap(
+    source: Path,
+    *,
+    out: Path | None = None,
+    json_out: Path | None = None,
+    width_mm: float | None = None,
+    depth_mm: float | None = None,
+    pitch_mm: float | None = None,
+    remove_outliers: bool = False,
+    flatten: str | None = None,
+    crop: str | None = None,
+) -> dict[str, object]:
+    """``printapp heightmap``: correct a map, describe it, and write the corrected map and the summary.
+
+    ``out`` (``.npy``, heights in mm) and ``json_out`` are written together or not at all.
+    Returns the summary (:func:`roughness_summary`).
+    """
+    import io
+    import json
+
+    from printapp.exporters import atomic_write_files
+
+    if out is not None and out.suffix.lower() != ".npy":
+        raise DesignError(f"{out}: expected an output file ending in .npy")
+    corrected = load_corrected(
+        source,
+        width_mm=width_mm,
+        depth_mm=depth_mm,
+        pitch_mm=pitch_mm,
+        remove_outliers=remove_outliers,
+        flatten=flatten,
+        crop=crop,
+    )
+    summary = roughness_summary(source, corrected, flatten)
+    outputs: list[tuple[Path, bytes]] = []
+    if json_out is not None:
+        outputs.append((json_out, (json.dumps(summary, indent=2) + "\n").encode()))
+    if out is not None:
+        buffer = io.BytesIO()
+        np.save(buffer, corrected.heights_mm)
+        outputs.append((out, buffer.getvalue()))
+    atomic_write_files(outputs)
+    return summary

@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from noise.heightfield import HeightField
-from render.brdf_model import FitResult, fit_microfacet, lobe_alpha
+from render.brdf_fit import FitResult, fit_microfacet, lobe_alpha
 from render.fresnel import fresnel_dielectric
 from render.gonio import (
     BrdfTable,

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from slicing.sl1 import Slices
+from slicing.layers import Slices
 
 
 def printed_heights(slices: Slices) -> np.ndarray:

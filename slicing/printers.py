@@ -74,6 +74,32 @@ def _load_profiles() -> dict[str, PrinterProfile]:
 PRINTERS: dict[str, PrinterProfile] = _load_profiles()
 
 
+class UnknownPrinterError(KeyError, ValueError):
+    """A printer name that no profile has; the message names the known ones."""
+
+    def __str__(self) -> str:
+        return str(self.args[0])
+
+
+def find_printer(name: str) -> PrinterProfile:
+    """The profile called ``name``.
+
+    Raises
+    ------
+    UnknownPrinterError
+        With a sentence listing the known profiles and the closest name, if any.
+    """
+    if name in PRINTERS:
+        return PRINTERS[name]
+    import difflib
+
+    close = difflib.get_close_matches(name, PRINTERS, n=1)
+    hint = f"; did you mean '{close[0]}'?" if close else ""
+    raise UnknownPrinterError(
+        f"unknown printer '{name}', expected one of {', '.join(sorted(PRINTERS))}{hint}"
+    )
+
+
 def custom_printer(pitch_mm: float, pixels_x: int, pixels_y: int, layer_height_mm: float) -> PrinterProfile:
     """A square-pixel printer from its pitch (mm), resolution (px) and layer height (mm)."""
     if not (pitch_mm > 0 and pixels_x > 0 and pixels_y > 0 and layer_height_mm > 0):

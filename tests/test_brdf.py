@@ -14,7 +14,8 @@ from scipy.ndimage import gaussian_filter
 
 from noise.heightfield import HeightField
 from render.appearance import gloss_units, predict_appearance
-from render.brdf_model import MicrofacetBRDF, bin_average, fit_microfacet, relative_error
+from render.brdf_fit import fit_microfacet, relative_error
+from render.brdf_model import MicrofacetBRDF, bin_average
 from render.fresnel import diffuse_fresnel_reflectance, fresnel_dielectric
 from render.gonio import (
     _trace,

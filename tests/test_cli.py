@@ -14,6 +14,7 @@ import trimesh
 from PIL import Image
 
 ROOT = Path(__file__).parent.parent
+SAMPLES = ROOT / "printapp" / "samples"
 
 
 def printapp(*args, cwd=None):
@@ -178,7 +179,7 @@ def test_mesh_design_end_to_end(tmp_path):
     design.write_text(
         f"""
 [base]
-path = "{(ROOT / "printapp" / "samples" / "meshes" / "featuretype.STL").as_posix()}"
+path = "{(SAMPLES / "meshes" / "featuretype.STL").as_posix()}"
 scale = 5.0
 [texture]
 feature_size_mm = 2.0
@@ -301,7 +302,7 @@ def test_texture_lic_and_field_errors(tmp_path):
 
 
 def test_lic_fields_that_do_not_fit_the_base_are_refused_clearly(tmp_path):
-    mesh = (ROOT / "printapp" / "samples" / "meshes" / "featuretype.STL").as_posix()
+    mesh = (SAMPLES / "meshes" / "featuretype.STL").as_posix()
     result, _ = run_bad(
         tmp_path, f'[base]\npath = "{mesh}"\n[texture]\nkind = "lic"\nfield = "image:a.png"\n'
     )
@@ -344,7 +345,7 @@ def test_bench_frames(tmp_path):
 def test_slice_command_writes_an_archive_and_a_png_stack(tmp_path):
     out = tmp_path / "part.sl1"
     stack = tmp_path / "stack"
-    result = printapp("slice", ROOT / "printapp" / "samples" / "meshes" / "featuretype.STL", "-o", out, "--png-dir", stack)
+    result = printapp("slice", SAMPLES / "meshes" / "featuretype.STL", "-o", out, "--png-dir", stack)
     assert result.returncode == 0, result.stderr
     with zipfile.ZipFile(out) as archive:
         assert archive.namelist()[0] == "config.ini"
@@ -358,7 +359,7 @@ def test_slice_command_writes_an_archive_and_a_png_stack(tmp_path):
 def test_slice_command_writes_no_png_stack_when_the_archive_cannot_be_written(tmp_path):
     stack = tmp_path / "stack"
     out = tmp_path / "missing" / "part.sl1"
-    result = printapp("slice", ROOT / "printapp" / "samples" / "meshes" / "featuretype.STL", "-o", out, "--png-dir", stack)
+    result = printapp("slice", SAMPLES / "meshes" / "featuretype.STL", "-o", out, "--png-dir", stack)
     assert result.returncode == 2 and "does not exist" in result.stderr
     assert not list(stack.rglob("*.png"))
 
@@ -367,9 +368,18 @@ def test_slice_command_writes_no_png_stack_when_the_archive_cannot_be_written(tm
     ("args", "message"),
     [
         (["printapp/samples/meshes/teapot.stl", "-o", "x.sl1"], "found 64 open edges"),
-        (["printapp/samples/meshes/featuretype.STL", "-o", "x.sl1", "--printer", "elegoo"], "--printer: unknown printer"),
-        (["printapp/samples/meshes/featuretype.STL", "-o", "x.zip"], "expected an output file ending in .sl1"),
-        (["printapp/samples/meshes/featuretype.STL", "-o", "x.sl1", "--layer-height-mm", "0.3"], "outside what"),
+        (
+            ["printapp/samples/meshes/featuretype.STL", "-o", "x.sl1", "--printer", "elegoo"],
+            "--printer: unknown printer",
+        ),
+        (
+            ["printapp/samples/meshes/featuretype.STL", "-o", "x.zip"],
+            "expected an output file ending in .sl1",
+        ),
+        (
+            ["printapp/samples/meshes/featuretype.STL", "-o", "x.sl1", "--layer-height-mm", "0.3"],
+            "outside what",
+        ),
     ],
 )
 def test_slice_bad_input(tmp_path, args, message):
@@ -383,7 +393,7 @@ def test_slice_bad_input(tmp_path, args, message):
 def test_displace_repairs_and_writes_obj_with_material(tmp_path):
     out = tmp_path / "teapot.obj"
     result = printapp(
-        "displace", ROOT / "printapp" / "samples" / "meshes" / "teapot.stl", "--repair", "--amplitude-mm", "0.05",
+        "displace", SAMPLES / "meshes" / "teapot.stl", "--repair", "--amplitude-mm", "0.05",
         "--feature-size-mm", "3", "--refractive-index", "1.52", "-o", out,
     )  # fmt: skip
     assert result.returncode == 0, result.stderr
@@ -399,7 +409,7 @@ def test_displace_writes_ply_and_refuses_open_meshes(tmp_path):
     out = tmp_path / "part.ply"
     result = printapp(
         "displace",
-        ROOT / "printapp" / "samples" / "meshes" / "featuretype.STL",
+        SAMPLES / "meshes" / "featuretype.STL",
         "--scale",
         "5",
         "--amplitude-mm",
@@ -411,11 +421,21 @@ def test_displace_writes_ply_and_refuses_open_meshes(tmp_path):
     mesh = trimesh.load(out)
     assert mesh.is_watertight and mesh.is_winding_consistent and mesh.euler_number == 2 - 2 * 9
     bad = printapp(
-        "displace", ROOT / "printapp" / "samples" / "meshes" / "teapot.stl", "--amplitude-mm", "0.1", "-o", tmp_path / "t.stl"
+        "displace",
+        SAMPLES / "meshes" / "teapot.stl",
+        "--amplitude-mm",
+        "0.1",
+        "-o",
+        tmp_path / "t.stl",
     )
     assert bad.returncode == 2 and "printapp displace --repair" in bad.stderr
     assert not (tmp_path / "t.stl").exists()
     bad = printapp(
-        "displace", ROOT / "printapp" / "samples" / "meshes" / "featuretype.STL", "--amplitude-mm", "-1", "-o", out
+        "displace",
+        SAMPLES / "meshes" / "featuretype.STL",
+        "--amplitude-mm",
+        "-1",
+        "-o",
+        out,
     )
     assert bad.returncode == 2 and "relief.amplitude_mm" in bad.stderr

@@ -26,11 +26,15 @@ from noise.spectra import (
 from printapp.cli import app
 from printapp.design import DesignError, load_design
 from printapp.errors import PrintappError
-from printapp.fit import LOW_SCORE, fit_photo, read_photo
-from printapp.fit_models import NoiseLookup, Target, fit_model
+from printapp.fit import LOW_SCORE, fit_photo
+from printapp.fit_measures import Target
+from printapp.fit_models import NoiseLookup
+from printapp.fit_search import fit_model
+from printapp.photo import read_photo
 
 ROOT = Path(__file__).parent.parent
-MARBLE = sorted((ROOT / "printapp" / "samples" / "marble").iterdir())
+SAMPLES = ROOT / "printapp" / "samples"
+MARBLE = sorted((SAMPLES / "marble").iterdir())
 runner = CliRunner()
 
 
@@ -235,7 +239,7 @@ def test_fit_beats_random_parameters_on_every_measure(marble_fits, name):
 
 
 def test_tiled_floor_and_bricks_are_flagged_not_fitted_confidently(tmp_path):
-    tiles = fit_photo(ROOT / "printapp" / "samples" / "marble" / "marble_01_512.jpg", budget=48)
+    tiles = fit_photo(SAMPLES / "marble" / "marble_01_512.jpg", budget=48)
     n, rng = 256, np.random.default_rng(0)
     y, x = np.mgrid[0:n, 0:n]
     course = y // 32

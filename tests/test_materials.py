@@ -423,7 +423,7 @@ def test_translucent_example_renders_a_medium_end_to_end(tmp_path):
 
 def test_design_material_validation_and_dense_resin_uses_the_albedo(tmp_path):
     from printapp.design import DesignError, design_from_dict
-    from printapp.materials import derive_design_material, render_choice
+    from printapp.material_design import derive_design_material, render_choice
 
     with pytest.raises(DesignError, match="material: give either 'name' or 'refractive_index'"):
         design_from_dict({"material": {"name": "white-resin", "refractive_index": 1.5}}, "d.toml")

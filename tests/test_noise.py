@@ -216,9 +216,9 @@ def test_grid_path_at_large_coordinates():
     assert 0.7 < values.std() / noise.sparse_convolution_grid(x - 1e7, x - 1e7).std() < 1.4
 
 
-def test_marble_mapping():
+def test_unit_noise_is_the_talks_mapping_to_0_1():
     pts = np.random.default_rng(3).uniform(0, 20, (20_000, 3))
-    m = noise.marble(pts, A=1.0, B=2.0, seed=1)
+    m = noise.unit_noise(pts, A=1.0, B=2.0, seed=1)
     np.testing.assert_allclose(m, 0.5 * (noise.sparse_convolution(2.0 * pts, seed=1) + 1), atol=1e-12)
     assert m.min() >= 0.0 and m.max() <= 1.0
 

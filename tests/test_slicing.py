@@ -146,7 +146,7 @@ def test_bad_input(mesh, kwargs, message):
 def test_as_printed_tile_recovers_the_design():
     from printapp.design import design_from_dict
     from printapp.mesh import slab_from_heightfield
-    from printapp.pipeline import as_printed
+    from printapp.relief import as_printed
     from printapp.texture import relief_heightfield
 
     design = design_from_dict({"base": {"width_mm": 6.0, "depth_mm": 5.0}, "relief": {"amplitude_um": 200}})

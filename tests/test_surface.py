@@ -143,11 +143,11 @@ def test_image_field_on_a_mesh_design(tmp_path):
     from printapp.design import load_design
     from printapp.pipeline import run_design
 
-    root = __import__("pathlib").Path(__file__).parent.parent
+    samples = __import__("pathlib").Path(__file__).parent.parent / "printapp" / "samples"
     Image.fromarray(np.full((32, 32), 85, dtype=np.uint8)).save(tmp_path / "angles.png")
     design = tmp_path / "d.toml"
     design.write_text(
-        f'[base]\npath = "{(root / "printapp" / "samples" / "meshes" / "featuretype.STL").as_posix()}"\nscale = 3.0\n'
+        f'[base]\npath = "{(samples / "meshes" / "featuretype.STL").as_posix()}"\nscale = 3.0\n'
         '[texture]\nkind = "lic"\nfield = "image:angles.png"\nfeature_size_mm = 0.4\nlength_mm = 1.0\n'
         "[relief]\namplitude_um = 100\n"
     )

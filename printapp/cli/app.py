@@ -1,0 +1,96 @@
+"""The typer application, its consoles and its one error boundary.
+
+Every command is parse → one application function → print. A :class:`PrintappError`
+raised anywhere below a command becomes its one-sentence message on stderr and its
+exit code (2 for bad input, 3 for a failed verification), here and nowhere else. User
+text (file names, design names, messages that quote them) is printed as plain text,
+never as Rich markup.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from rich.console import Console
+from rich.text import Text
+from typer.core import TyperGroup
+
+from printapp.errors import PrintappError
+
+err = Console(stderr=True, highlight=False, soft_wrap=True, markup=False)
+out = Console(highlight=False, soft_wrap=True, markup=False)
+if not out.is_terminal:
+    out.width = 160  # piped output: do not squeeze tables to 80 columns
+
+
+class _Commands(TyperGroup):
+    """The command group with printapp's error boundary."""
+
+    def invoke(self, ctx):  # noqa: ANN001, ANN201 (click's signature)
+        try:
+            return super().invoke(ctx)
+        except PrintappError as exc:
+            err.print(Text("error: ", style="bold red") + Text(str(exc)))
+            raise typer.Exit(exc.exit_code) from None
+
+
+app = typer.Typer(
+    name="printapp",
+    cls=_Commands,
+    help="Appearance printing: textures to watertight resin prints, verified by path tracing.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+
+QuietOption = Annotated[
+    bool, typer.Option("--quiet", "-q", help="No progress bars, only the summary and errors.")
+]
+ForceOption = Annotated[
+    bool, typer.Option("--force", help="Write the model even when the design fails verification.")
+]
+
+
+def percent(value: float | None) -> str:
+    """A fraction as a percentage, or why there is none."""
+    return "n/a (too few rays)" if value is None else f"{value:.1%}"
+
+
+def warn(message: str) -> None:
+    """One warning line on stderr."""
+    err.print(Text("warning: ", style="bold yellow") + Text(message))
+
+
+def wrote(paths: list[Path], indent: str = "  ") -> None:
+    """One ``wrote PATH`` line per output."""
+    for path in paths:
+        out.print(f"{indent}wrote {path}")
+
+
+def _version_callback(value: bool) -> None:
+    if value:
+        from importlib.metadata import version
+
+        out.print(f"printapp {version('printapp')}")
+        raise typer.Exit(0)
+
+
+@app.callback()
+def _root(
+    version: Annotated[
+        bool, typer.Option("--version", callback=_version_callback, is_eager=True, help="Show the version.")
+    ] = False,
+) -> None:
+    """Appearance printing: textures to watertight resin prints, verified by path tracing."""
+
+
+def main() -> None:
+    """Console-script entry point."""
+    try:
+        app()
+    except KeyboardInterrupt:
+        err.print("interrupted; no partial outputs were left")
+        sys.exit(130)

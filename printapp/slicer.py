@@ -1,0 +1,75 @@
+"""``printapp slice``: a closed mesh file to a PrusaSlicer-compatible ``.sl1`` (and a PNG stack)."""
+
+from __future__ import annotations
+
+import io
+import zipfile
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from printapp.errors import DesignError
+
+
+@dataclass(frozen=True)
+class Sliced:
+    """The layers of a model and what was written."""
+
+    slices: Any
+    """:class:`slicing.Slices`."""
+    volume_ml: float
+    printer_label: str
+    written: list[Path]
+
+
+def slice_model_file(
+    model: Path,
+    out: Path,
+    *,
+    printer: str = "prusa-sl1",
+    layer_height_mm: float | None = None,
+    antialias: bool | None = None,
+    png_dir: Path | None = None,
+) -> Sliced:
+    """Slice a closed mesh (mm) for ``printer`` into ``out`` (``.sl1``), and optionally a PNG stack.
+
+    The PNG stack (with the archive's ``config.ini``) is staged first and moved into
+    ``png_dir`` only once the archive is written.
+
+    Raises
+    ------
+    DesignError
+        For an unknown printer, a wrong suffix, a mesh that is not closed, or a model
+        the printer cannot hold (layer height, size).
+    """
+    from printapp.exporters import OutputFolder, atomic_write_bytes
+    from printapp.mesh import load_closed_mesh
+    from slicing import UnknownPrinterError, find_printer, slice_mesh, write_sl1
+    from slicing.sl1 import encoded_layers
+
+    try:
+        profile = find_printer(printer)
+    except UnknownPrinterError as exc:
+        raise DesignError(f"--printer: {exc}") from None
+    if out.suffix.lower() != ".sl1":
+        raise DesignError(f"{out}: expected an output file ending in .sl1")
+    mesh = load_closed_mesh(model)
+    try:
+        slices = slice_mesh(
+            mesh.vertices, mesh.faces, profile, layer_height_mm=layer_height_mm, antialias=antialias
+        )
+    except ValueError as exc:
+        raise DesignError(f"{model}: {exc}") from None
+    buffer = io.BytesIO()
+    stats = write_sl1(buffer, slices, out.stem)
+    archive_bytes = buffer.getvalue()
+    if png_dir is None:
+        return Sliced(slices, stats.volume_ml, profile.label, [atomic_write_bytes(out, archive_bytes)])
+    with OutputFolder(png_dir) as folder:
+        with zipfile.ZipFile(io.BytesIO(archive_bytes)) as archive:
+            folder.write_bytes("config.ini", archive.read("config.ini"))
+        for k, png in encoded_layers(slices):
+            folder.write_bytes(f"{k:05d}.png", png)
+        atomic_write_bytes(out, archive_bytes)
+        folder.commit()
+    return Sliced(slices, stats.volume_ml, profile.label, [out, png_dir])

@@ -14,7 +14,7 @@ estimator's own origins, regenerated bit for bit from its random stream, directi
 ``llvm_ad_rgb`` variant, over a mesh that is the tracer's surface exactly: two
 triangles per cell with the diagonal from sample (r, c) to (r+1, c+1), the wrap-around
 cells included, and a ring of periodic copies wide enough that every first hit of a
-primary ray lies on the mesh. The numba tracer's own first-hit query (``_trace`` only)
+primary ray lies on the mesh. The numba tracer's own first-hit query (``render.gonio.first_hit``)
 is timed on the same rays too, and the peers' first hits are checked against it.
 
 Time against error: rays per direction from 1e3 to 1e6 (1e7 at normal incidence) on
@@ -42,7 +42,7 @@ from numba import njit, prange
 
 from noise.hashing import mix64, seed_key
 from printapp.bench import StageResult, interleaved_seconds
-from render.gonio import _primary_origin, _trace, lobe_bins, lobe_error
+from render.gonio import first_hit, lobe_bins, lobe_error, primary_origin
 
 SIDE = 512
 ANGLES_DEG = (0.0, 60.0, 85.0)
@@ -127,13 +127,13 @@ def lit_window(heights: np.ndarray, px: float, py: float, wis: np.ndarray, perio
 
 @njit(cache=True, parallel=True)
 def _primary_origins(wis, starts, counts, window, px, py, zmax, period_x, period_y, key, out):
-    # Written exactly as render.gonio._gonio starts its rays: same key, counters, order of
-    # operations, so the origins are bit for bit the estimator's.
+    # Keyed exactly as render.gonio.estimate_brdf keys its rays, and placed by the same
+    # function, so the origins are bit for bit the estimator's.
     for d_idx in range(wis.shape[0]):
         wix, wiy, wiz = wis[d_idx, 0], wis[d_idx, 1], wis[d_idx, 2]
         for k in prange(counts[d_idx]):
             ray_key = mix64(key ^ (np.uint64(d_idx) << np.uint64(40)) ^ np.uint64(k))
-            x0, y0 = _primary_origin(ray_key, window, d_idx, px, py, wix, wiy, wiz, zmax, period_x, period_y)
+            x0, y0 = primary_origin(ray_key, window, d_idx, px, py, wix, wiy, wiz, zmax, period_x, period_y)
             row = starts[d_idx] + k
             out[row, 0] = x0
             out[row, 1] = y0
@@ -227,7 +227,7 @@ def face_cells(
 @njit(cache=True, parallel=True)
 def _first_hits(h, px, py, mip, mip_off, mip_nx, n_levels, zmax, zmin, origins, dirs, t_out, cell_out):
     for k in prange(origins.shape[0]):
-        status, t, _nx, _ny, _nz, ci, cj, tri, steps = _trace(
+        status, t, _nx, _ny, _nz, ci, cj, tri, steps = first_hit(
             h,
             px,
             py,
@@ -243,9 +243,6 @@ def _first_hits(h, px, py, mip, mip_off, mip_nx, n_levels, zmax, zmin, origins, 
             dirs[k, 0],
             dirs[k, 1],
             dirs[k, 2],
-            0,
-            0,
-            -1,
         )
         t_out[k] = t if status == 1 else np.inf
         cell_out[k, 0] = ci
@@ -315,7 +312,7 @@ class _Peers:
             self.embree_build_s = time.perf_counter() - start
             self.embree = scene
         try:
-            from render.mitsuba_adapter import _mesh_object, choose_variant
+            from render.mitsuba_adapter import choose_variant, mesh_object
 
             choice = choose_variant()
             if choice.variant == "scalar_rgb":
@@ -327,7 +324,7 @@ class _Peers:
             notes.append(f"Mitsuba 3 is not usable here ({exc}): no Mitsuba peer in this run")
             return
         start = time.perf_counter()
-        mesh = _mesh_object(vertices, faces, mi.load_dict({"type": "diffuse"}))
+        mesh = mesh_object(vertices, faces, mi.load_dict({"type": "diffuse"}))
         self.mitsuba = mi.load_dict({"type": "scene", "relief": mesh})
         self.mitsuba_build_s = time.perf_counter() - start
         self.variant = choice.variant

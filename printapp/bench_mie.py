@@ -34,10 +34,9 @@ def _miepython() -> tuple[Any, bool]:
     os.environ.setdefault("MIEPYTHON_USE_JIT", "1")
     try:
         import miepython
-        from miepython import _backend
     except ImportError:
         return None, False
-    return miepython, bool(_backend.USE_JIT)
+    return miepython, bool(miepython.USE_JIT)
 
 
 def _pairs(n: int, absorbing: bool) -> tuple[np.ndarray, np.ndarray]:

@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from printapp.bench import StageResult
+from printapp.bench.timing import StageResult
 
 PEER_SCRIPT = Path(__file__).resolve().parent.parent / "peers" / "blender_displace.py"
 
@@ -39,7 +39,8 @@ def _run(command: list[str], repeats: int) -> float:
     return statistics.median(times)
 
 
-def bench_emboss(repeats: int) -> StageResult:
+def bench_mesh(repeats: int) -> StageResult:
+    """Height map to STL with ``printapp emboss`` beside Blender's Displace workflow."""
     import trimesh
     from PIL import Image
 
@@ -141,5 +142,5 @@ def bench_emboss(repeats: int) -> StageResult:
         [] if blender is not None else ["blender is not installed (Debian: apt-get install blender): no peer"]
     )
     return StageResult(
-        "emboss", "height map to printable STL beside Blender's Displace workflow", rows, chart, notes
+        "mesh", "height map to printable STL beside Blender's Displace workflow", rows, chart, notes
     )

@@ -7,7 +7,8 @@ table, and draws a time-versus-error chart. Tests never assert timings.
 One module per stage, named after it (``printapp.bench.noise`` runs ``bench noise``),
 loaded only when its stage runs; :mod:`printapp.bench.timing` holds what they share
 and :mod:`printapp.bench.reference` the slow reference implementations they (and the
-tests) measure against.
+tests) measure against; :mod:`printapp.bench.peers` holds the files that drive the peer
+tools.
 """
 
 from __future__ import annotations

@@ -486,6 +486,81 @@ def max_mipmap(heights: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray,
     return flat, offsets, level_nx, len(levels)
 
 
+@njit(cache=True)
+def first_hit(h, px, py, mip, mip_off, mip_nx, n_levels, zmax, zmin, ox, oy, oz, dx, dy, dz):
+    """First hit of one ray with the periodic height field: the estimator's tracer, alone.
+
+    The query :func:`estimate_brdf` makes for every ray, without Fresnel splitting,
+    bounces or binning, so that it can be compared with other ray tracers on the same
+    rays. Compiled with numba: callable from other ``@njit`` functions (one ray per call).
+
+    Parameters
+    ----------
+    h : ndarray of float64, shape (ny, nx)
+        Heights (mm) relative to their mean, C-contiguous; rows along y, columns along x.
+    px, py : float
+        Sample spacing along x and along y (mm).
+    mip, mip_off, mip_nx, n_levels
+        The max-mipmap of ``h``: the four values :func:`max_mipmap` returns.
+    zmax, zmin : float
+        Highest and lowest value of ``h`` (mm).
+    ox, oy, oz : float
+        Ray origin (mm); x and y in the tile's frame, any period.
+    dx, dy, dz : float
+        Unit ray direction.
+
+    Returns
+    -------
+    status : int
+        0 escaped (above every sample, going up), 1 hit, 2 lost (step budget exhausted).
+    t : float
+        Distance along the ray (mm): to the hit, or as far as the ray was followed.
+    nx, ny, nz : float
+        Unit normal of the facet hit (zero unless ``status`` is 1).
+    ci, cj : int
+        Unwrapped cell (column, row) where the ray ended; outside ``0..nx-1`` after wrapping.
+    tri : int
+        Triangle hit: 0 lower (v00, v10, v11), 1 upper (v00, v11, v01); -1 unless a hit.
+    steps : int
+        Cells and mipmap blocks visited.
+    """
+    return _trace(h, px, py, mip, mip_off, mip_nx, n_levels, zmax, zmin, ox, oy, oz, dx, dy, dz, 0, 0, -1)
+
+
+@njit(cache=True, inline="always")
+def primary_origin(ray_key, window, d_idx, px, py, wix, wiy, wiz, zmax, period_x, period_y):
+    """Where the estimator starts a primary ray, bit for bit, to regenerate its rays elsewhere.
+
+    Compiled with numba: callable from other ``@njit`` functions. :func:`estimate_brdf`
+    keys ray ``k`` of incident direction ``d_idx`` as
+    ``mix64(seed_key(seed) ^ (d_idx << 40) ^ k)`` (:mod:`noise.hashing`) and starts it
+    here, at height ``zmax``, travelling along ``-wi``.
+
+    Parameters
+    ----------
+    ray_key : uint64
+        The ray's key; the first two numbers of its stream place it.
+    window : ndarray of float64, shape (n_directions, 4)
+        Per direction, the lit window in cells: first cell and extent along x, then along y.
+    d_idx : int
+        Row of ``window`` (the incident direction's index).
+    px, py : float
+        Sample spacing along x and along y (mm).
+    wix, wiy, wiz : float
+        Unit incident direction (towards the light), ``wiz > 0``.
+    zmax : float
+        Height of the start (mm): the highest sample, heights relative to their mean.
+    period_x, period_y : float
+        Tile size along x and along y (mm).
+
+    Returns
+    -------
+    x0, y0 : float
+        Start of the ray (mm), wrapped into ``[0, period_x)`` and ``[0, period_y)``.
+    """
+    return _primary_origin(ray_key, window, d_idx, px, py, wix, wiy, wiz, zmax, period_x, period_y)
+
+
 @dataclass
 class BrdfTable:
     """A tabulated, bin-averaged BRDF from the virtual gonioreflectometer.

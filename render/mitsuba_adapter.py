@@ -226,7 +226,27 @@ def medium_dict(medium: MediumRGB) -> dict[str, Any]:
     }
 
 
-def _mesh_object(vertices: np.ndarray, faces: np.ndarray, bsdf: Any, interior: Any = None) -> Any:
+def mesh_object(vertices: np.ndarray, faces: np.ndarray, bsdf: Any, interior: Any = None) -> Any:
+    """A Mitsuba triangle mesh from arrays, without writing a file.
+
+    Mitsuba must be imported with a variant set (:func:`choose_variant`).
+
+    Parameters
+    ----------
+    vertices : ndarray, shape (n, 3)
+        Vertex positions (mm: the scene's unit); stored as float32.
+    faces : ndarray of int, shape (m, 3)
+        Vertex indices of each triangle; stored as uint32.
+    bsdf : mitsuba.BSDF
+        The surface's BSDF (a loaded plugin object).
+    interior : mitsuba.Medium, optional
+        A participating medium inside the closed mesh.
+
+    Returns
+    -------
+    mitsuba.Mesh
+        The shape, named ``"relief"``, ready for a scene dictionary.
+    """
     import mitsuba as mi
 
     props = mi.Properties()
@@ -366,7 +386,7 @@ def render_resin_mesh(
             "type": "constant",
             "radiance": {"type": "rgb", "value": [light.environment] * 3},
         },
-        "relief": _mesh_object(np.asarray(vertices_mm), np.asarray(faces), bsdf, interior),
+        "relief": mesh_object(np.asarray(vertices_mm), np.asarray(faces), bsdf, interior),
     }
     if light.radiance > 0.0:
         # (Without light, no box either: a dark box would shade the environment.)

@@ -12,16 +12,16 @@ import numpy as np
 import pytest
 from scipy.ndimage import gaussian_filter
 
-from printapp.bench_brdf import (
+from printapp.bench.brdf import tracer_slopes
+from printapp.bench.brdf_hits import (
     TracerFirstHit,
     face_cells,
     mesh_margin_cells,
     periodic_mesh,
     primary_rays,
-    tracer_slopes,
 )
+from printapp.bench.reference.ray_triangles import first_hits
 from render.gonio import direction_from_angles, estimate_brdf, lobe_bins, lobe_error
-from tests.reference.ray_triangles import first_hits
 
 NY, NX = 24, 30  # not square, and different pitches, so that x and y cannot be swapped unnoticed
 PX, PY = 0.05, 0.04

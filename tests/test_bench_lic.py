@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from printapp.bench import interleaved_seconds
-from printapp.bench_lic import pixel_crossings_per_px
+from printapp.bench.lic import pixel_crossings_per_px
 
 
 @pytest.mark.parametrize("angle_deg", [0.0, 30.0, 45.0, 120.0])

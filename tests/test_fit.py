@@ -113,16 +113,16 @@ def test_structure_tensor_finds_stripes():
 
 
 def test_noise_psd_has_the_impulse_process_shape():
-    from printapp.bench_noise import _analytic_slice_spectrum
+    from printapp.bench.noise import analytic_slice_spectrum
 
     rho, psd = scn_slice_psd()
-    # The analytic spectrum (bench_noise: N (E[a^2] - E[a]^2 |Phi|^2) |K|^2 over f_z, itself a
+    # The analytic spectrum (printapp.bench.noise: N (E[a^2] - E[a]^2 |Phi|^2) |K|^2 over f_z, itself a
     # numerical integral that agrees with measured spectra to 3-5 % RMS) is known up to a
     # constant; from 0.1 to 3 cycles per unit, where the power falls by 3.5 decades, the
     # estimate's shape stays within 0.12 decades of it. The tighter check of what the fits
     # use is the next test, against the mean of independent realisations.
     keep = np.flatnonzero((rho > 0.1) & (rho < 3.0))[::4]
-    ratio = np.log10(psd[keep] / _analytic_slice_spectrum(rho[keep]))
+    ratio = np.log10(psd[keep] / analytic_slice_spectrum(rho[keep]))
     assert np.ptp(np.log10(psd[keep])) > 3.0
     assert np.max(np.abs(ratio - ratio.mean())) < 0.12
 

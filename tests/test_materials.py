@@ -4,13 +4,13 @@ line and a translucent design end to end."""
 
 import json
 import math
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 from typer.testing import CliRunner
 
+from printapp.bench.reference import albedo_mc
 from printapp.cli import app
 from printapp.errors import PrintappError
 from printapp.materials import (
@@ -31,9 +31,6 @@ from render.translucency import (
     choose_translucency,
     diffuse_albedo,
 )
-
-sys.path.insert(0, str(Path(__file__).parent))
-from reference import albedo_mc  # noqa: E402
 
 ROOT = Path(__file__).parent.parent
 runner = CliRunner()

@@ -1,21 +1,17 @@
 """Lorenz–Mie kernels: published values, a high-precision reference, miepython, and the limits."""
 
 import math
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from render import mie
 
-sys.path.insert(0, str(Path(__file__).parent))
-
 
 def reference():
     """The 40-digit mpmath reference (mpmath is in the dev extra)."""
     pytest.importorskip("mpmath")
-    from reference import mie_mpmath
+    from printapp.bench.reference import mie_mpmath
 
     return mie_mpmath
 

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import noise
-from tests.reference.scn_reference import scn as scn_reference
+from printapp.bench.reference.scn_reference import scn as scn_reference
 
 
 @pytest.mark.parametrize("mode", ["hash", "frisvad"])
@@ -102,7 +102,7 @@ def test_bad_arguments_name_themselves(call, name):
 
 @pytest.fixture(scope="module")
 def plain():
-    from tests.reference.scn_plain_numba import plain_sparse_convolution
+    from printapp.bench.reference.scn_plain_numba import plain_sparse_convolution
 
     return plain_sparse_convolution
 

@@ -5,7 +5,7 @@ sparse) and for regular 2-D and 3-D grids, measured in the same run for
 
 * printapp's kernels (``noise.sparse_convolution`` and the ``*_grid`` fast paths),
 * the plain per-point numba implementation of the same formula
-  (``tests/reference/scn_plain_numba.py``),
+  (:mod:`printapp.bench.reference.scn_plain_numba`),
 * pyfastnoisesimd's SIMD Perlin noise, a cheaper noise, for scale (when installed).
 
 Accuracy against cost: impulses per cell N against time per sample, the distance
@@ -15,30 +15,16 @@ averaged power spectrum against the analytic spectrum of the impulse process.
 
 from __future__ import annotations
 
-import importlib
 import math
-import sys
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from printapp.bench import StageResult, median_seconds
-from printapp.errors import PrintappError
+from printapp.bench.timing import StageResult, median_seconds
 
 IMPULSE_COUNTS = (1, 2, 4, 8, 16, 30, 64)
 _REFERENCE_N = 256
-
-
-def _plain_reference() -> Any:
-    root = Path(__file__).resolve().parent.parent
-    path = root / "tests" / "reference" / "scn_plain_numba.py"
-    if not path.is_file():
-        raise PrintappError(f"{path}: bench noise needs the source checkout's plain reference kernel")
-    # Imported under its test-suite name, so that numba's on-disk cache is shared with the tests.
-    if str(root) not in sys.path:
-        sys.path.insert(0, str(root))
-    return importlib.import_module("tests.reference.scn_plain_numba").plain_sparse_convolution
 
 
 def _perlin_peer() -> Any | None:
@@ -89,13 +75,23 @@ def _kernel_ft(rho: np.ndarray) -> np.ndarray:
     return out
 
 
-def _analytic_slice_spectrum(freqs: np.ndarray) -> np.ndarray:
+def analytic_slice_spectrum(freqs: np.ndarray) -> np.ndarray:
     """Radial power spectrum of the noise's z = 0 slice, up to a constant.
 
     Per cell, N impulses at independent uniform positions with amplitudes
     s_j a_j (a uniform on [0, 1), signs alternating) have the power spectrum
     N (E[a^2] - E[a]^2 |Phi(f)|^2) |K(f)|^2, Phi the cell's uniform-density transform
     (even N); a slice integrates it over f_z. Radially averaged over directions.
+
+    Parameters
+    ----------
+    freqs : ndarray of float, shape (n,)
+        Radial frequencies, in cycles per unit of the noise's coordinates (cells are 1 wide).
+
+    Returns
+    -------
+    ndarray of float, shape (n,)
+        The spectrum at ``freqs``, to an unknown constant factor: compare shapes only.
     """
     fz = np.linspace(-6.0, 6.0, 481)
     angles = np.linspace(0.0, np.pi / 2, 9)
@@ -137,8 +133,8 @@ def _histogram_distance(values: np.ndarray, reference: np.ndarray) -> float:
 def bench_noise(repeats: int) -> StageResult:
     """Speed beside the plain reference and a peer; accuracy against impulses per cell."""
     import noise
+    from printapp.bench.reference.scn_plain_numba import plain_sparse_convolution as plain
 
-    plain = _plain_reference()
     perlin = _perlin_peer()
     rng = np.random.default_rng(0)
     rows: list[dict[str, Any]] = []
@@ -178,7 +174,7 @@ def bench_noise(repeats: int) -> StageResult:
     # nears its first zero and relative errors measure aliasing, not the noise.
     edges = np.linspace(0.25, 2.0, 15)
     centres = 0.5 * (edges[1:] + edges[:-1])
-    analytic = _analytic_slice_spectrum(centres)
+    analytic = analytic_slice_spectrum(centres)
     reference = noise.sparse_convolution_grid(axis, axis, impulses=_REFERENCE_N).ravel()
     timing_points = rng.uniform(0, 16, (200_000, 3))
     sweep = []

@@ -14,26 +14,46 @@ veined marbles.
 
 from __future__ import annotations
 
+from importlib.resources import as_file, files
+from importlib.resources.abc import Traversable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from printapp.bench import StageResult, interleaved_seconds
+from printapp.bench.timing import StageResult, interleaved_seconds
 from printapp.errors import PrintappError
+
+if TYPE_CHECKING:
+    from printapp.fit import Photo
 
 BUDGETS = (8, 32, 64, 160, 320)
 SWEEP_PHOTOS = ("Marble006_512.jpg", "Marble020_512.jpg")
 _THUMB = 160
+_PHOTO_SUFFIXES = (".jpg", ".jpeg", ".png", ".webp")
 
 
-def _photos() -> list[Path]:
-    root = Path(__file__).resolve().parent / "samples"
-    photos = sorted((root / "marble").glob("*")) + sorted((root / "textures").glob("*"))
-    photos = [p for p in photos if p.suffix.lower() in (".jpg", ".jpeg", ".png", ".webp")]
+def _photos() -> list[Traversable]:
+    """The package's sample photos: marble/, then textures/, each in name order."""
+    # Resources, not paths beside this file: an installed wheel has the samples too.
+    root = files("printapp") / "samples"
+    photos = [
+        entry
+        for folder in ("marble", "textures")
+        if (root / folder).is_dir()
+        for entry in sorted((root / folder).iterdir(), key=lambda e: e.name)
+        if entry.name.lower().endswith(_PHOTO_SUFFIXES)
+    ]
     if not photos:
-        raise PrintappError(f"{root}: bench fit needs the photos of the source checkout's data/ folder")
+        raise PrintappError(f"{root}: bench fit found no photos in the package's samples/marble and textures")
     return photos
+
+
+def _read(photo: Traversable, max_side: int = 512) -> Photo:
+    from printapp.fit import read_photo
+
+    with as_file(photo) as path:
+        return read_photo(path, max_side)
 
 
 def _recovery() -> dict[str, Any]:
@@ -91,16 +111,18 @@ def _thumb(rgb: np.ndarray):
 
 
 def bench_fit(repeats: int) -> StageResult:
+    """Photos to noise parameters: time, score and quality beside the baselines, and the budget sweep."""
     from noise.spectra import random_phase
-    from printapp.fit import fit_photo, read_photo
+    from printapp.fit import fit_photo
 
     reps = max(1, min(repeats, 3))
     rows: list[dict[str, Any]] = []
     gallery: list[tuple[str, Any, Any, Any]] = []
     measures: dict[str, Any] = {}
-    fit_photo(_photos()[0], max_side=64, budget=8)  # warm: numba caches, noise spectra, imports
-    for path in _photos():
-        photo = read_photo(path)
+    photos = _photos()
+    fit_photo(_read(photos[0], max_side=64), budget=8)  # warm: numba caches, noise spectra, imports
+    for path in photos:
+        photo = _read(path)
         timed = {"fit": lambda p=photo: fit_photo(p), "phase": lambda p=photo: random_phase(p.rgb, 0)}
         medians, last, _ = interleaved_seconds(timed, reps)
         seconds, result, phase_s = medians["fit"], last["fit"], medians["phase"]
@@ -131,7 +153,7 @@ def bench_fit(repeats: int) -> StageResult:
 
     sweep: list[dict[str, Any]] = []
     for name in SWEEP_PHOTOS:
-        photo = read_photo(next(p for p in _photos() if p.name == name))
+        photo = _read(next(p for p in photos if p.name == name))
         for model in ("fbm", "turbulence", "marble"):
             for budget in BUDGETS:
                 medians, last, _ = interleaved_seconds(

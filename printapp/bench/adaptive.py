@@ -11,12 +11,13 @@ from pathlib import Path
 
 import numpy as np
 
-from printapp.bench import StageResult, median_seconds
+from printapp.bench.timing import StageResult, median_seconds
 
 BOUNDS_UM = (0.0, 0.25, 0.5, 1.0, 2.0, 5.0, 10.0, 20.0)
 
 
 def bench_adaptive(repeats: int) -> StageResult:
+    """Triangles of the adaptive top against the height error they leave, beside the full grid."""
     import noise
     from noise.heightfield import HeightField
     from printapp.slab import adaptive_slab_arrays, slab_arrays

@@ -15,6 +15,7 @@
 
 from __future__ import annotations
 
+import importlib.util
 import math
 import os
 import time
@@ -23,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from printapp.bench import StageResult, interleaved_seconds
+from printapp.bench.timing import StageResult, interleaved_seconds
 
 _RATIOS = (0.1, 0.3, 1.0, 3.0, 10.0, 30.0)
 _JND_LEVELS = 1.0
@@ -34,10 +35,9 @@ def _miepython() -> tuple[Any, bool]:
     os.environ.setdefault("MIEPYTHON_USE_JIT", "1")
     try:
         import miepython
-        from miepython import _backend
     except ImportError:
         return None, False
-    return miepython, bool(_backend.USE_JIT)
+    return miepython, bool(miepython.USE_JIT)
 
 
 def _pairs(n: int, absorbing: bool) -> tuple[np.ndarray, np.ndarray]:
@@ -55,16 +55,12 @@ def _pairs(n: int, absorbing: bool) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _mpmath_reference() -> Any:
-    """The tests' 40-digit reference, when run from a source checkout with mpmath installed."""
-    import importlib.util
-
-    path = Path(__file__).resolve().parent.parent / "tests" / "reference" / "mie_mpmath.py"
-    if not path.exists() or importlib.util.find_spec("mpmath") is None:
+    """The 40-digit reference, or None without mpmath (in the dev extra only)."""
+    if importlib.util.find_spec("mpmath") is None:
         return None
-    spec = importlib.util.spec_from_file_location("printapp_bench_mie_reference", path)
-    module = importlib.util.module_from_spec(spec)  # type: ignore[arg-type]
-    spec.loader.exec_module(module)  # type: ignore[union-attr]
-    return module
+    from printapp.bench.reference import mie_mpmath
+
+    return mie_mpmath
 
 
 def _speed(repeats: int, miepython: Any) -> list[dict[str, Any]]:
@@ -155,7 +151,7 @@ def _stability(miepython: Any) -> list[dict[str, Any]]:
             rows.append(
                 {
                     "case": f"q_back, m = {m_all[i].real:.4f}, x = {x_all[i]:.4g} (largest disagreement)",
-                    "reference": "40-digit mpmath Bessel functions (tests/reference/mie_mpmath.py)",
+                    "reference": "40-digit mpmath Bessel functions (printapp/bench/reference/mie_mpmath.py)",
                     "printapp_rel_err": float(f"{abs(ours_all[2][i] / exact - 1):.2g}"),
                     "miepython_rel_err": float(f"{abs(theirs_all[2][i] / exact - 1):.2g}"),
                 }
@@ -267,6 +263,7 @@ def _renders() -> tuple[list[dict[str, Any]], float | None, float]:
 
 
 def bench_mie(repeats: int) -> StageResult:
+    """Lorenz-Mie speed and stability beside miepython, and body albedo against medium renders."""
     from render.translucency import MEDIUM_THRESHOLD
 
     load = os.getloadavg()[0]
@@ -288,6 +285,8 @@ def bench_mie(repeats: int) -> StageResult:
         f"the albedo's error rises more than {_JND_LEVELS:g} level above its dense-limit floor from "
         f"mfp/footprint = {measured} on; render.translucency.MEDIUM_THRESHOLD = {MEDIUM_THRESHOLD:g}",
     ]
+    if importlib.util.find_spec("mpmath") is None:
+        notes.append("mpmath is not installed (pip install mpmath): no 40-digit reference rows for q_back")
 
     def chart(path: Path) -> None:
         import matplotlib

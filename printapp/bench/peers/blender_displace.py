@@ -1,7 +1,7 @@
 """The talk's Blender workflow, headless: height map -> subdivided grid -> Displace -> STL.
 
 Run by `printapp bench mesh` as the peer:
-    blender -b --factory-startup --python-exit-code 1 --python peers/blender_displace.py -- \
+    blender -b --factory-startup --python-exit-code 1 --python printapp/bench/peers/blender_displace.py -- \
         MAP.png N OUT.stl WIDTH_MM DEPTH_MM
 An N x N-quad grid of WIDTH_MM, displaced by DEPTH_MM for white, read as Non-Color data
 (Blender would otherwise bend the heights by the sRGB curve). The result is an open

@@ -4,18 +4,29 @@ Written from the formulas (Bohren & Huffman 1983 eqs. 4.53, 4.56, 4.61, 4.62, 4.
 Frisvad, Christensen & Jensen 2007 for the absorbing host), with no recurrences of our own:
 psi_n(z) = z j_n(z) and xi_n(z) = z h_n^(1)(z) straight from mpmath, so it checks the numba
 kernels' recurrences independently. Indices here in Bohren & Huffman's n + i kappa.
+
+mpmath is in the dev extra only, so it is imported when a function first runs, not with
+this module: without it, calling one raises ``ImportError`` (``pip install mpmath``).
 """
 
 from __future__ import annotations
 
-import mpmath as mp
+from typing import Any
+
+
+def _mpmath() -> Any:
+    import mpmath
+
+    return mpmath
 
 
 def _psi(n: int, z):
+    mp = _mpmath()
     return mp.sqrt(mp.pi * z / 2) * mp.besselj(n + mp.mpf(1) / 2, z)
 
 
 def _xi(n: int, z):
+    mp = _mpmath()
     return mp.sqrt(mp.pi * z / 2) * (mp.besselj(n + mp.mpf(1) / 2, z) + 1j * mp.bessely(n + mp.mpf(1) / 2, z))
 
 
@@ -25,6 +36,7 @@ def coefficients(m: complex, x: complex, n_terms: int, dps: int = 40) -> tuple[l
     FCJ07's form with n_med = 1 after dividing by the host's index:
     a_n = (psi_n'(y) psi_n(x) - m psi_n(y) psi_n'(x)) / (psi_n'(y) xi_n(x) - m psi_n(y) xi_n'(x)).
     """
+    mp = _mpmath()
     with mp.workdps(dps):
         m = mp.mpc(m)
         x = mp.mpc(x)
@@ -49,6 +61,7 @@ def efficiencies(
 
     The number of terms is well past Wiscombe's so that truncation is not what is measured.
     """
+    mp = _mpmath()
     with mp.workdps(dps):
         nu = mp.mpc(1, host_k)
         xc = x * nu
@@ -77,6 +90,7 @@ def efficiencies(
 def amplitudes(m: complex, x: float, mu: list[float], dps: int = 30) -> tuple[list[complex], list[complex]]:
     """S1, S2 (BH 4.74, BH convention) at cosines mu in a clear host, pi_n and tau_n from mpmath's
     associated Legendre functions (pi_n = P_n^1 / sin, tau_n = dP_n^1 / d theta)."""
+    mp = _mpmath()
     with mp.workdps(dps):
         n_terms = int(x + 6 * x ** (1 / 3) + 12)
         a, b = coefficients(m, x, n_terms, dps)

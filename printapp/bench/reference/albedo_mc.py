@@ -13,6 +13,7 @@ import numpy as np
 
 
 def albedo(single_scattering_albedo: float, eta: float = 1.0, photons: int = 200_000, seed: int = 1) -> float:
+    """Fraction of the photons that entered which come back out (relative index ``eta``)."""
     rng = np.random.default_rng(seed)
     cos_i = np.sqrt(rng.random(photons))
     sin_t2 = (1 - cos_i**2) / eta**2

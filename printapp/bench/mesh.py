@@ -2,7 +2,7 @@
 
 The same 1024 x 1024 16-bit height map (smooth fBm), 10 mm wide, 0.2 mm deep:
 
-* Blender (Debian's 3.4, background mode, ``peers/blender_displace.py``): a 1024 x 1024
+* Blender (Debian's 3.4, background mode, ``printapp/bench/peers/blender_displace.py``): a 1024 x 1024
   quad grid, the Displace modifier, binary STL; an open sheet.
 * ``printapp emboss`` at the same resolution (1024^2 samples): a closed slab, binary STL.
 * ``printapp emboss`` at the printer's pixel pitch (the default): what a print needs.
@@ -25,9 +25,8 @@ from typing import Any
 
 import numpy as np
 
-from printapp.bench import StageResult
-
-PEER_SCRIPT = Path(__file__).resolve().parent.parent / "peers" / "blender_displace.py"
+from printapp.bench.peers import peer_file
+from printapp.bench.timing import StageResult
 
 
 def _run(command: list[str], repeats: int) -> float:
@@ -39,7 +38,8 @@ def _run(command: list[str], repeats: int) -> float:
     return statistics.median(times)
 
 
-def bench_emboss(repeats: int) -> StageResult:
+def bench_mesh(repeats: int) -> StageResult:
+    """Height map to STL with ``printapp emboss`` beside Blender's Displace workflow."""
     import trimesh
     from PIL import Image
 
@@ -48,7 +48,7 @@ def bench_emboss(repeats: int) -> StageResult:
     reps = max(1, min(repeats, 3))
     blender = shutil.which("blender")
     rows: list[dict[str, Any]] = []
-    with tempfile.TemporaryDirectory() as tmp:
+    with tempfile.TemporaryDirectory() as tmp, peer_file("blender_displace.py") as peer_script:
         folder = Path(tmp)
         axis = np.linspace(0.0, 6.0, 1024)
         relief = noise.fbm_grid(axis, axis, octaves=5, seed=3)
@@ -91,7 +91,7 @@ def bench_emboss(repeats: int) -> StageResult:
         if blender is not None:
             peer = folder / "blender.stl"
             command = [
-                blender, "-b", "--factory-startup", "--python-exit-code", "1", "--python", str(PEER_SCRIPT),
+                blender, "-b", "--factory-startup", "--python-exit-code", "1", "--python", str(peer_script),
                 "--", str(height_map), "1024", str(peer), "10", "0.2",
             ]  # fmt: skip
             peer_s = _run(command, reps)
@@ -141,5 +141,5 @@ def bench_emboss(repeats: int) -> StageResult:
         [] if blender is not None else ["blender is not installed (Debian: apt-get install blender): no peer"]
     )
     return StageResult(
-        "emboss", "height map to printable STL beside Blender's Displace workflow", rows, chart, notes
+        "mesh", "height map to printable STL beside Blender's Displace workflow", rows, chart, notes
     )

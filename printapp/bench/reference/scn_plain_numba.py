@@ -46,8 +46,14 @@ def _plain_kernel(points, key, n_impulses, mode_hash, out):
         out[k] = _plain_point(points[k, 0], points[k, 1], points[k, 2], key, n_impulses, mode_hash)
 
 
-def plain_sparse_convolution(points, seed=0, impulses=30, cell_seed="hash"):
-    """Sparse convolution noise at (n, 3) points, one point at a time (all cores)."""
+def plain_sparse_convolution(
+    points: np.ndarray, seed: int = 0, impulses: int = 30, cell_seed: str = "hash"
+) -> np.ndarray:
+    """Sparse convolution noise at (n, 3) points, one point at a time (all cores).
+
+    The arguments mean what they mean for ``noise.sparse_convolution``; ``cell_seed``
+    is ``"hash"`` or ``"frisvad"``.
+    """
     pts = np.ascontiguousarray(points, dtype=np.float64)
     out = np.empty(pts.shape[0])
     _plain_kernel(pts, seed_key(int(seed)), np.int64(impulses), cell_seed == "hash", out)

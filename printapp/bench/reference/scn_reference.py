@@ -10,12 +10,14 @@ GOLDEN = 0x9E3779B97F4A7C15
 
 
 def mix64(z: int) -> int:
+    """SplitMix64's finaliser on a 64-bit integer."""
     z = ((z ^ (z >> 30)) * 0xBF58476D1CE4E5B9) & MASK
     z = ((z ^ (z >> 27)) * 0x94D049BB133111EB) & MASK
     return z ^ (z >> 31)
 
 
 def seed_key(seed: int) -> int:
+    """The stream key of a noise seed."""
     return mix64((seed * GOLDEN + 0x632BE59BD9B4E019) & MASK)
 
 
@@ -25,6 +27,7 @@ def rnd(key: int, n: int) -> float:
 
 
 def cell_base(key: int, q: tuple[int, int, int], n_impulses: int, mode: str) -> int:
+    """Index of cell ``q``'s first random number: hashed (``"hash"``) or Frisvad's dot product."""
     if mode == "frisvad":
         dot = q[0] * 1 + q[1] * 1000 + q[2] * 576
         return (4 * n_impulses * dot) & MASK
@@ -35,6 +38,7 @@ def cell_base(key: int, q: tuple[int, int, int], n_impulses: int, mode: str) -> 
 
 
 def scn(p: tuple[float, float, float], seed: int = 0, n_impulses: int = 30, mode: str = "hash") -> float:
+    """Sparse convolution noise at point ``p``: the eight nearest cells' impulses, summed."""
     key = seed_key(seed)
     base = [math.floor(c - 0.5) for c in p]
     total = 0.0

@@ -1,6 +1,6 @@
 """``printapp bench slice``: printapp's slicer beside PrusaSlicer 2.5, on the same STL and settings.
 
-Two parts on the Original Prusa SL1 profile (``peers/sl1_flat.ini``, supports and pad
+Two parts on the Original Prusa SL1 profile (``printapp/bench/peers/sl1_flat.ini``, supports and pad
 off): a 40 mm sphere (800 layers) and a closed 20 x 20 mm slab with a 0.5 mm relief from
 a 512 x 512 height field (50 layers). Both tools run as commands, start-up included
 (``printapp slice`` and ``prusa-slicer --export-sla``), medians over repeats in the same
@@ -23,10 +23,9 @@ from typing import Any
 
 import numpy as np
 
-from printapp.bench import StageResult
+from printapp.bench.peers import peer_file
+from printapp.bench.timing import StageResult
 from printapp.errors import PrintappError
-
-PEER_INI = Path(__file__).resolve().parent.parent / "peers" / "sl1_flat.ini"
 
 
 def _parts(folder: Path) -> list[tuple[str, Path]]:
@@ -83,6 +82,7 @@ def _compare(ours: list[np.ndarray], theirs: list[np.ndarray]) -> dict[str, floa
 
 
 def bench_slice(repeats: int) -> StageResult:
+    """``printapp slice`` beside PrusaSlicer on a sphere and a relief slab: time and layer agreement."""
     from printapp.mesh import load_closed_mesh
     from slicing import PRINTERS, read_sl1, slice_mesh, write_sl1
 
@@ -90,7 +90,7 @@ def bench_slice(repeats: int) -> StageResult:
     reps = max(1, min(repeats, 3))
     rows: list[dict[str, Any]] = []
     sweep: list[dict[str, Any]] = []
-    with tempfile.TemporaryDirectory() as tmp:
+    with tempfile.TemporaryDirectory() as tmp, peer_file("sl1_flat.ini") as peer_ini:
         folder = Path(tmp)
         for name, stl in _parts(folder):
             ours_path = folder / f"{stl.stem}_printapp.sl1"
@@ -122,7 +122,7 @@ def bench_slice(repeats: int) -> StageResult:
             if prusa is not None:
                 peer_path = folder / f"{stl.stem}_prusa.sl1"
                 command = [
-                    prusa, "--datadir", str(folder / "datadir"), "--loglevel", "1", "--load", str(PEER_INI),
+                    prusa, "--datadir", str(folder / "datadir"), "--loglevel", "1", "--load", str(peer_ini),
                     "--export-sla", "-o", str(peer_path), str(stl),
                 ]  # fmt: skip
                 peer_s, _ = _timed(command, reps)

@@ -18,7 +18,8 @@ from printapp.mesh import slab_from_heightfield
 if TYPE_CHECKING:
     from printapp.relief import Relief
     from render.appearance import Appearance
-    from render.mitsuba_adapter import StudioLight, TableSurface
+    from render.mitsuba_adapter import StudioLight
+    from render.mitsuba_bsdfs import TableSurface
     from render.translucency import MediumRGB
 
 

@@ -26,7 +26,7 @@ import numpy as np
 from render.brdf_model import MicrofacetBRDF
 from render.fresnel import diffuse_fresnel_reflectance
 from render.gonio import direction_from_angles, estimate_brdf
-from render.mitsuba_adapter import CompactSurface, TableSurface
+from render.mitsuba_bsdfs import CompactSurface, TableSurface
 
 REPRESENTATIONS = ("model", "table", "geometry")
 

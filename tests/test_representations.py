@@ -12,13 +12,8 @@ import trimesh
 
 from render.brdf_model import MicrofacetBRDF
 from render.fresnel import fresnel_dielectric
-from render.mitsuba_adapter import (
-    CompactSurface,
-    StudioLight,
-    TableSurface,
-    choose_variant,
-    render_resin_mesh,
-)
+from render.mitsuba_adapter import StudioLight, choose_variant, render_resin_mesh
+from render.mitsuba_bsdfs import CompactSurface, TableSurface
 from render.representation import Choice, body_tint, choose_representation, compact_surface
 
 UNIFORM = StudioLight(radiance=0.0, environment=1.0, highlight_radiance=0.0)  # a uniform white world
@@ -212,7 +207,7 @@ def test_compact_bsdf_samples_the_density_it_reports(params, wi):
     choose_variant()
     from mitsuba.chi2 import BSDFAdapter, ChiSquareTest, SphericalDomain
 
-    from render.mitsuba_adapter import surface_bsdf
+    from render.mitsuba_bsdfs import surface_bsdf
 
     surface_bsdf(CompactSurface("ggx", 0.1, 0.1, 0.0, 1.5, (0.5, 0.5, 0.5)))  # registers the plugin
     plugin = {

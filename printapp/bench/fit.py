@@ -25,7 +25,7 @@ from printapp.bench.timing import StageResult, interleaved_seconds
 from printapp.errors import PrintappError
 
 if TYPE_CHECKING:
-    from printapp.fit import Photo
+    from printapp.photo import Photo
 
 BUDGETS = (8, 32, 64, 160, 320)
 SWEEP_PHOTOS = ("Marble006_512.jpg", "Marble020_512.jpg")
@@ -50,7 +50,7 @@ def _photos() -> list[Traversable]:
 
 
 def _read(photo: Traversable, max_side: int = 512) -> Photo:
-    from printapp.fit import read_photo
+    from printapp.photo import read_photo
 
     with as_file(photo) as path:
         return read_photo(path, max_side)
@@ -59,7 +59,8 @@ def _read(photo: Traversable, max_side: int = 512) -> Photo:
 def _recovery() -> dict[str, Any]:
     """Parameter recovery on the project's own noise at 512 px: random cases, errors and misses."""
     import noise
-    from printapp.fit_models import Target, fit_model
+    from printapp.fit_measures import Target
+    from printapp.fit_search import fit_model
 
     rng = np.random.default_rng(5)
     n = 512

@@ -202,7 +202,7 @@ def _stability(miepython: Any) -> list[dict[str, Any]]:
 def _renders() -> tuple[list[dict[str, Any]], float | None, float]:
     from printapp.design import design_from_dict
     from printapp.materials import appearance
-    from printapp.pipeline import build_relief
+    from printapp.relief import build_relief
     from render.mitsuba_adapter import Framing, choose_variant, render_resin_mesh, to_srgb8
 
     choose_variant()

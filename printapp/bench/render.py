@@ -72,7 +72,7 @@ def representation_error(
 
 def bench_render(repeats: int) -> StageResult:
     """Compact BRDF, traced table and geometry of one relief: time against image error by distance."""
-    from printapp.pipeline import build_relief
+    from printapp.relief import build_relief
     from printapp.rendering import base_shape, predict_for_design
     from render.mitsuba_adapter import PREVIEW_FOV_DEG, Framing, choose_variant, render_resin_mesh
     from render.representation import GEOMETRY_FROM_FEATURES_PER_PIXEL, compact_surface, table_surface

@@ -1,0 +1,353 @@
+"""The printed surface's appearance as Mitsuba BSDFs: the fitted compact model and the traced table.
+
+printapp's BSDF plugins, registered with Mitsuba on first use; :mod:`render.mitsuba_adapter`
+renders with them. Mitsuba is imported lazily.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+_registered: dict[str, Any] = {}
+
+
+@dataclass(frozen=True)
+class CompactSurface:
+    """Representation (a): the fitted compact model (:class:`render.brdf_model.MicrofacetBRDF`).
+
+    ``body_rgb`` is the resin's linear-RGB body albedo (the fit's grey albedo is its
+    luminance). The anisotropy's azimuth is measured in the shading frame, which on a
+    surface facing +z is the world's x and y.
+    """
+
+    distribution: str
+    alpha_u: float
+    alpha_v: float
+    azimuth_rad: float
+    ior: float
+    body_rgb: tuple[float, float, float]
+    spike_weight: float = 0.0
+    spike_alpha: float = 0.002
+
+
+@dataclass(frozen=True)
+class TableSurface:
+    """Representation (b): a traced BRDF table over a regular grid of incident directions.
+
+    ``specular`` and ``body`` are ``(n_theta_i, n_phi_i, n_theta_o, n_phi_o)`` arrays
+    (1/sr) of the surface-only and the through-the-body parts; incident polar angles run
+    evenly from 0 to ``theta_i_max_rad``, azimuths evenly over [0, 2 pi); ``body_tint``
+    scales the body part per channel (for a coloured resin traced in grey).
+    """
+
+    specular: np.ndarray
+    body: np.ndarray
+    theta_i_max_rad: float
+    body_tint: tuple[float, float, float] = (1.0, 1.0, 1.0)
+
+
+def surface_bsdf(surface: CompactSurface | TableSurface | dict) -> Any:
+    """A Mitsuba BSDF object for a representation of the printed surface (variant already set).
+
+    A ``dict`` is a Mitsuba plugin description, loaded as it is (for comparisons with
+    Mitsuba's own BSDFs).
+    """
+    import mitsuba as mi
+
+    from render.fresnel import diffuse_fresnel_reflectance
+
+    _register_plugins()
+    if isinstance(surface, dict):
+        return mi.load_dict(surface)
+    if isinstance(surface, CompactSurface):
+        return mi.load_dict(
+            {
+                "type": "printapp_compact",
+                "distribution": surface.distribution,
+                "alpha_u": float(surface.alpha_u),
+                "alpha_v": float(surface.alpha_v),
+                "azimuth": float(surface.azimuth_rad),
+                "spike_weight": float(surface.spike_weight),
+                "spike_alpha": float(surface.spike_alpha),
+                "ior": float(surface.ior),
+                "f_dr_int": float(diffuse_fresnel_reflectance(1.0 / surface.ior)),
+                "body": {"type": "rgb", "value": [float(c) for c in surface.body_rgb]},
+            }
+        )
+    bsdf = mi.load_dict({"type": "printapp_table"})
+    bsdf.set_table(surface.specular, surface.body, surface.theta_i_max_rad, surface.body_tint)
+    return bsdf
+
+
+def _register_plugins() -> None:
+    """Define and register printapp's BSDF plugins for the current variant (once per variant)."""
+    import drjit as dr
+    import mitsuba as mi
+
+    variant = mi.variant()
+    if variant in _registered:
+        return
+
+    def fresnel(cos_i, eta):
+        cos_i = dr.clip(dr.abs(cos_i), 0.0, 1.0)
+        sin2_t = (1.0 - cos_i * cos_i) / (eta * eta)
+        cos_t = dr.safe_sqrt(1.0 - sin2_t)
+        r_perp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t)
+        r_par = (eta * cos_i - cos_t) / (eta * cos_i + cos_t)
+        return dr.select(sin2_t >= 1.0, 1.0, 0.5 * (r_perp * r_perp + r_par * r_par))
+
+    class CompactResin(mi.BSDF):
+        """The fitted compact model: anisotropic microfacet lobe, optional sharp spike, Lambertian body."""
+
+        def __init__(self, props):
+            super().__init__(props)
+            self.ggx = props.get("distribution", "ggx") == "ggx"  # else Beckmann
+            self.alpha_u = float(props.get("alpha_u", 0.1))
+            self.alpha_v = float(props.get("alpha_v", 0.1))
+            self.azimuth = float(props.get("azimuth", 0.0))
+            self.spike_weight = float(props.get("spike_weight", 0.0))
+            self.spike_alpha = float(props.get("spike_alpha", 0.002))
+            self.eta = float(props.get("ior", 1.5))
+            body = props.get("body", mi.ScalarColor3f(0.5, 0.5, 0.5))
+            f_int = float(props.get("f_dr_int", 0.6))
+            rho = [float(body[i]) for i in range(3)]
+            # rho / (pi n^2 (1 - rho F_dr,int)) per channel
+            self.body_factor = mi.Color3f(*[r / (math.pi * self.eta**2 * (1.0 - r * f_int)) for r in rho])
+            self.body_mean = sum(rho) / 3.0
+            self.m_components = [
+                mi.BSDFFlags.GlossyReflection | mi.BSDFFlags.FrontSide,
+                mi.BSDFFlags.DiffuseReflection | mi.BSDFFlags.FrontSide,
+            ]
+            self.m_flags = self.m_components[0] | self.m_components[1]
+
+        # --- one lobe -----------------------------------------------------------------
+        def _rot(self, v):
+            c, s = math.cos(self.azimuth), math.sin(self.azimuth)
+            return mi.Vector3f(c * v.x + s * v.y, -s * v.x + c * v.y, v.z)
+
+        def _unrot(self, v):
+            c, s = math.cos(self.azimuth), math.sin(self.azimuth)
+            return mi.Vector3f(c * v.x - s * v.y, s * v.x + c * v.y, v.z)
+
+        def _d(self, m, au, av):
+            x2 = (m.x * m.x) / (au * au) + (m.y * m.y) / (av * av)
+            z2 = m.z * m.z
+            if self.ggx:
+                q = x2 + z2
+                return dr.rcp(dr.pi * au * av * q * q)
+            return dr.exp(-x2 / z2) / (dr.pi * au * av * z2 * z2)
+
+        def _lambda(self, w, au, av):
+            proj = dr.sqrt(au * au * w.x * w.x + av * av * w.y * w.y)
+            wz = dr.maximum(w.z, 1e-7)
+            if self.ggx:
+                return 0.5 * (dr.sqrt(1.0 + (proj / wz) ** 2) - 1.0)
+            a = wz / dr.maximum(proj, 1e-12)
+            lam = 0.5 * (dr.erf(a) - 1.0) + dr.exp(-a * a) / (2.0 * a * math.sqrt(math.pi))
+            return dr.select(a > 26.0, 0.0, lam)
+
+        def _distribution(self, au, av):
+            kind = mi.MicrofacetType.GGX if self.ggx else mi.MicrofacetType.Beckmann
+            return mi.MicrofacetDistribution(kind, au, av, True)
+
+        def _lobe_eval_pdf(self, wi, wo, au, av):
+            """f cos(theta_o), and the pdf of sampling wo by this lobe's visible normals (rotated frame)."""
+            h = dr.normalize(wi + wo)
+            d = self._d(h, au, av)
+            g2 = dr.rcp(1.0 + self._lambda(wi, au, av) + self._lambda(wo, au, av))
+            f = fresnel(dr.dot(wi, h), self.eta) * d * g2 / (4.0 * wi.z)
+            # Visible normals (Heitz 2018): pdf(m) = G1(wi) max(0, wi.m) D(m) / cos(theta_i).
+            g1 = dr.rcp(1.0 + self._lambda(wi, au, av))
+            pdf = (
+                g1
+                * dr.maximum(dr.dot(wi, h), 0.0)
+                * d
+                / wi.z
+                / (4.0 * dr.maximum(dr.abs(dr.dot(wo, h)), 1e-12))
+            )
+            return f, pdf
+
+        def _choice(self, cos_i):
+            f = fresnel(cos_i, self.eta)
+            spec = f
+            body = (1.0 - f) * self.body_mean
+            p_spec = spec / dr.maximum(spec + body, 1e-12)
+            return p_spec
+
+        def _all(self, wi_l, wo_l):
+            wi, wo = self._rot(wi_l), self._rot(wo_l)
+            w = self.spike_weight
+            f1, p1 = self._lobe_eval_pdf(wi, wo, self.alpha_u, self.alpha_v)
+            value = (1.0 - w) * f1
+            pdf_spec = (1.0 - w) * p1
+            if w > 0.0:
+                f2, p2 = self._lobe_eval_pdf(wi, wo, self.spike_alpha, self.spike_alpha)
+                value += w * f2
+                pdf_spec += w * p2
+            body = (1.0 - fresnel(wi.z, self.eta)) * (1.0 - fresnel(wo.z, self.eta)) * wo.z
+            p_spec = self._choice(wi.z)
+            pdf = p_spec * pdf_spec + (1.0 - p_spec) * mi.warp.square_to_cosine_hemisphere_pdf(wo_l)
+            return value, body, pdf
+
+        def eval(self, ctx, si, wo, active=True):
+            ok = active & (mi.Frame3f.cos_theta(si.wi) > 0) & (mi.Frame3f.cos_theta(wo) > 0)
+            value, body, _ = self._all(si.wi, wo)
+            out = mi.Spectrum(value) + self.body_factor * body
+            return dr.select(ok, out, 0.0)
+
+        def pdf(self, ctx, si, wo, active=True):
+            ok = active & (mi.Frame3f.cos_theta(si.wi) > 0) & (mi.Frame3f.cos_theta(wo) > 0)
+            _, _, pdf = self._all(si.wi, wo)
+            return dr.select(ok, pdf, 0.0)
+
+        def eval_pdf(self, ctx, si, wo, active=True):
+            ok = active & (mi.Frame3f.cos_theta(si.wi) > 0) & (mi.Frame3f.cos_theta(wo) > 0)
+            value, body, pdf = self._all(si.wi, wo)
+            out = mi.Spectrum(value) + self.body_factor * body
+            return dr.select(ok, out, 0.0), dr.select(ok, pdf, 0.0)
+
+        def sample(self, ctx, si, sample1, sample2, active=True):
+            wi_l = si.wi
+            cos_i = mi.Frame3f.cos_theta(wi_l)
+            active = active & (cos_i > 0)
+            p_spec = self._choice(cos_i)
+            pick_spec = sample1 < p_spec
+            # Which lobe: the spike with probability spike_weight (reusing sample1's remainder).
+            u_lobe = sample1 / dr.maximum(p_spec, 1e-12)
+            wi = self._rot(wi_l)
+            m, _ = self._distribution(self.alpha_u, self.alpha_v).sample(wi, sample2)
+            if self.spike_weight > 0.0:
+                m_spike, _ = self._distribution(self.spike_alpha, self.spike_alpha).sample(wi, sample2)
+                m = dr.select(u_lobe < self.spike_weight, m_spike, m)
+            wo_spec = self._unrot(2.0 * dr.dot(wi, m) * m - wi)
+            wo_diff = mi.warp.square_to_cosine_hemisphere(sample2)
+            wo = dr.select(pick_spec, wo_spec, wo_diff)
+            bs = mi.BSDFSample3f()
+            bs.wo = wo
+            bs.eta = 1.0
+            bs.sampled_component = dr.select(pick_spec, mi.UInt32(0), mi.UInt32(1))
+            bs.sampled_type = dr.select(
+                pick_spec,
+                mi.UInt32(+mi.BSDFFlags.GlossyReflection),
+                mi.UInt32(+mi.BSDFFlags.DiffuseReflection),
+            )
+            value, body, pdf = self._all(wi_l, wo)
+            bs.pdf = pdf
+            ok = active & (mi.Frame3f.cos_theta(wo) > 0) & (pdf > 0)
+            weight = (mi.Spectrum(value) + self.body_factor * body) / dr.maximum(pdf, 1e-12)
+            return bs, dr.select(ok, weight, 0.0)
+
+        def to_string(self):
+            return f"CompactResin[alpha = ({self.alpha_u}, {self.alpha_v}), spike = {self.spike_weight}]"
+
+    class TabulatedBRDF(mi.BSDF):
+        """A traced BRDF table over a grid of incident directions, looked up bin by bin.
+
+        The value is bilinear in the incident direction (theta_i, phi_i) between the grid's
+        directions and constant over each outgoing bin (the table holds bin averages). The
+        surface-only part and the body part are kept apart so that the body can be tinted
+        per channel. Sampling is cosine-weighted.
+        """
+
+        def __init__(self, props):
+            super().__init__(props)
+            self.m_components = [mi.BSDFFlags.GlossyReflection | mi.BSDFFlags.FrontSide]
+            self.m_flags = self.m_components[0]
+            self.n_ti = self.n_pi = self.n_to = self.n_po = 1
+            self.theta_i_max = 1.0
+
+        def set_table(self, specular, body, theta_i_max, body_tint):
+            """``specular``, ``body``: (n_theta_i, n_phi_i, n_theta_o, n_phi_o) in 1/sr."""
+            self.n_ti, self.n_pi, self.n_to, self.n_po = specular.shape
+            self.theta_i_max = float(theta_i_max)
+            self.spec = mi.Float(np.ascontiguousarray(specular, dtype=np.float32).ravel())
+            self.body = mi.Float(np.ascontiguousarray(body, dtype=np.float32).ravel())
+            self.tint = mi.Color3f(*[float(t) for t in body_tint])
+
+        def _bin(self, w):
+            theta = dr.acos(dr.clip(w.z, -1.0, 1.0))
+            phi = dr.atan2(w.y, w.x)
+            phi = dr.select(phi < 0.0, phi + 2.0 * dr.pi, phi)
+            to = dr.minimum(mi.UInt32(theta * (2.0 / dr.pi) * self.n_to), self.n_to - 1)
+            po = dr.minimum(mi.UInt32(phi * (0.5 / dr.pi) * self.n_po), self.n_po - 1)
+            return to * self.n_po + po
+
+        def _lookup(self, wi, wo):
+            """Bilinear over the incident grid (theta_i clamped, phi_i periodic).
+
+            The body part is read at ``wo`` itself. The surface part is read, at each of
+            the four grid directions ``wi_k``, where ``wi_k`` has the same half vector as
+            ``(wi, wo)``: ``wo_k = 2 (wi_k . h) h - wi_k``, and carried over as
+            ``f cos(theta_i) cos(theta_o)``, which for microfacet reflection is
+            ``F D G / 4``, a function of h but for F and G. A glossy lobe moves with its
+            mirror direction, so blending lobes read this way moves the lobe instead of
+            smearing two copies of it.
+            """
+            theta_i = dr.acos(dr.clip(wi.z, -1.0, 1.0))
+            phi_i = dr.atan2(wi.y, wi.x)
+            phi_i = dr.select(phi_i < 0.0, phi_i + 2.0 * dr.pi, phi_i)
+            h = dr.normalize(wi + wo)
+            direct = self._bin(wo)
+            ti = dr.clip(theta_i / self.theta_i_max * (self.n_ti - 1), 0.0, self.n_ti - 1.0)
+            pi_ = phi_i * (0.5 / dr.pi) * self.n_pi
+            t0 = dr.minimum(mi.UInt32(dr.floor(ti)), self.n_ti - 1)
+            t1 = dr.minimum(t0 + 1, self.n_ti - 1)
+            ft = ti - mi.Float(t0)
+            p0 = mi.UInt32(dr.floor(pi_)) % self.n_pi
+            p1 = (p0 + 1) % self.n_pi
+            fp = pi_ - dr.floor(pi_)
+            spec = mi.Float(0.0)
+            body = mi.Float(0.0)
+            per_in = self.n_to * self.n_po
+            for t, wt in ((t0, 1.0 - ft), (t1, ft)):
+                theta_k = mi.Float(t) * (self.theta_i_max / max(self.n_ti - 1, 1))
+                for p, wp in ((p0, 1.0 - fp), (p1, fp)):
+                    phi_k = mi.Float(p) * (2.0 * dr.pi / self.n_pi)
+                    sin_k = dr.sin(theta_k)
+                    wi_k = mi.Vector3f(sin_k * dr.cos(phi_k), sin_k * dr.sin(phi_k), dr.cos(theta_k))
+                    wo_k = 2.0 * dr.dot(wi_k, h) * h - wi_k
+                    moved = wo_k.z > 0.0
+                    out_k = dr.select(moved, self._bin(wo_k), direct)
+                    # f cos_i cos_o = F D G / 4 depends on h (and slowly on F, G): carry that.
+                    scale = dr.select(moved, wi_k.z * wo_k.z / dr.maximum(wi.z * wo.z, 1e-4), 1.0)
+                    base = (t * self.n_pi + p) * per_in
+                    spec += wt * wp * scale * dr.gather(mi.Float, self.spec, base + out_k)
+                    body += wt * wp * dr.gather(mi.Float, self.body, base + direct)
+            return spec, body
+
+        def eval(self, ctx, si, wo, active=True):
+            ok = active & (mi.Frame3f.cos_theta(si.wi) > 0) & (mi.Frame3f.cos_theta(wo) > 0)
+            spec, body = self._lookup(si.wi, wo)
+            value = (mi.Spectrum(spec) + self.tint * body) * mi.Frame3f.cos_theta(wo)
+            return dr.select(ok, value, 0.0)
+
+        def pdf(self, ctx, si, wo, active=True):
+            ok = active & (mi.Frame3f.cos_theta(si.wi) > 0) & (mi.Frame3f.cos_theta(wo) > 0)
+            return dr.select(ok, mi.warp.square_to_cosine_hemisphere_pdf(wo), 0.0)
+
+        def eval_pdf(self, ctx, si, wo, active=True):
+            return self.eval(ctx, si, wo, active), self.pdf(ctx, si, wo, active)
+
+        def sample(self, ctx, si, sample1, sample2, active=True):
+            wo = mi.warp.square_to_cosine_hemisphere(sample2)
+            bs = mi.BSDFSample3f()
+            bs.wo = wo
+            bs.eta = 1.0
+            bs.pdf = mi.warp.square_to_cosine_hemisphere_pdf(wo)
+            bs.sampled_component = mi.UInt32(0)
+            bs.sampled_type = mi.UInt32(+mi.BSDFFlags.GlossyReflection)
+            ok = active & (mi.Frame3f.cos_theta(si.wi) > 0) & (bs.pdf > 0)
+            spec, body = self._lookup(si.wi, wo)
+            weight = (mi.Spectrum(spec) + self.tint * body) * dr.pi  # f cos / (cos / pi)
+            return bs, dr.select(ok, weight, 0.0)
+
+        def to_string(self):
+            return f"TabulatedBRDF[{self.n_ti} x {self.n_pi} incident, {self.n_to} x {self.n_po} outgoing]"
+
+    mi.register_bsdf("printapp_compact", lambda props: CompactResin(props))
+    mi.register_bsdf("printapp_table", lambda props: TabulatedBRDF(props))
+    _registered[variant] = TabulatedBRDF

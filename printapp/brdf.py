@@ -256,7 +256,7 @@ def predict_file(
     """
     import json
 
-    from printapp.exporters import atomic_write_files
+    from printapp.outputs import atomic_write_files
     from printapp.topography import load_corrected
     from render.appearance import DEFAULT_INCIDENT_DEG, predict_appearance
 

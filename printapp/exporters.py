@@ -1,13 +1,9 @@
-"""Writing outputs: binary STL, 3MF, and a staging folder that only ever shows whole files."""
+"""Output formats: binary STL, 3MF, PLY, OBJ with its MTL, PNG; meshes written by their suffix."""
 
 from __future__ import annotations
 
-import os
-import shutil
-import tempfile
 import zipfile
 from pathlib import Path
-from types import TracebackType
 
 import numpy as np
 from numba import njit, prange
@@ -109,55 +105,6 @@ def threemf_bytes(vertices: np.ndarray, faces: np.ndarray, name: str = "printapp
     return buffer.getvalue()
 
 
-def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
-    """Write ``data`` to a temporary file beside ``path``, then rename it into place.
-
-    Raises
-    ------
-    DesignError
-        If the folder does not exist or cannot be written.
-    """
-    return atomic_write_files([(Path(path), data)])[0]
-
-
-def atomic_write_files(outputs: list[tuple[Path, bytes]]) -> list[Path]:
-    """Write several files so that none appears unless all were written.
-
-    Every file is first written in full to a temporary name beside its destination;
-    only then are they renamed into place, one ``os.replace`` each (atomic on one file
-    system). A failure while writing leaves no output and no temporary file.
-
-    Raises
-    ------
-    DesignError
-        If a folder does not exist or cannot be written.
-    """
-    paths = [Path(path) for path, _ in outputs]
-    for path in paths:
-        folder = path.parent if str(path.parent) else Path(".")
-        if not folder.is_dir():
-            raise DesignError(f"{path}: the folder {folder} does not exist")
-        if path.is_dir():
-            raise DesignError(f"{path}: is a folder, expected a file name")
-    staged: list[str] = []
-    current = paths[0] if paths else Path(".")
-    try:
-        for current, (_, data) in zip(paths, outputs, strict=True):
-            folder = current.parent if str(current.parent) else Path(".")
-            fd, tmp = tempfile.mkstemp(prefix=f".{current.name}.", suffix=".partial", dir=folder)
-            staged.append(tmp)
-            with os.fdopen(fd, "wb") as handle:
-                handle.write(data)
-        for tmp, current in zip(staged, paths, strict=True):
-            os.replace(tmp, current)
-    except OSError as exc:
-        for tmp in staged:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
-        raise DesignError(f"{current}: cannot write the file ({exc.strerror or exc})") from None
-    return paths
-
-
 def ply_bytes(vertices: np.ndarray, faces: np.ndarray) -> bytes:
     """A binary little-endian PLY (float32 vertices in mm, int32 triangle lists)."""
     verts = np.asarray(vertices, dtype="<f4")
@@ -195,66 +142,6 @@ def obj_files(vertices: np.ndarray, faces: np.ndarray, stem: str, refractive_ind
         f"Ni {refractive_index:g}\nd 1\nillum 4\n"
     )
     return "".join(lines), mtl
-
-
-class OutputFolder:
-    """Stage outputs in a hidden folder beside their destination; move them in on success.
-
-    Each file appears under its final name only by ``os.replace`` (atomic on one
-    file system), so an interrupted run leaves no half-written output; the staging
-    folder is removed whatever happens.
-
-    Raises
-    ------
-    DesignError
-        On entering, if the destination cannot be created or written.
-    """
-
-    def __init__(self, destination: str | Path) -> None:
-        self.destination = Path(destination)
-        self._staging: Path | None = None
-        self._files: list[str] = []
-
-    def __enter__(self) -> OutputFolder:
-        try:
-            if self.destination.exists() and not self.destination.is_dir():
-                raise DesignError(f"{self.destination}: output folder is a file, expected a folder")
-            self.destination.mkdir(parents=True, exist_ok=True)
-            self._staging = Path(tempfile.mkdtemp(prefix=".printapp-partial-", dir=self.destination))
-        except OSError as exc:
-            raise DesignError(
-                f"{self.destination}: output folder is not writable ({exc.strerror or exc})"
-            ) from None
-        return self
-
-    def path(self, name: str) -> Path:
-        """Where to write ``name`` while staging."""
-        assert self._staging is not None, "use OutputFolder as a context manager"
-        if name not in self._files:
-            self._files.append(name)
-        return self._staging / name
-
-    def write_bytes(self, name: str, data: bytes) -> None:
-        self.path(name).write_bytes(data)
-
-    def write_text(self, name: str, text: str) -> None:
-        self.path(name).write_text(text, encoding="utf-8")
-
-    def commit(self, names: list[str] | None = None) -> list[Path]:
-        """Move the staged files (all, or ``names``) to the destination; return their final paths."""
-        assert self._staging is not None
-        moved = []
-        for name in names if names is not None else list(self._files):
-            final = self.destination / name
-            os.replace(self._staging / name, final)
-            moved.append(final)
-        return moved
-
-    def __exit__(
-        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
-    ) -> None:
-        if self._staging is not None:
-            shutil.rmtree(self._staging, ignore_errors=True)
 
 
 MESH_SUFFIXES = (".stl", ".3mf", ".ply", ".obj")
@@ -308,6 +195,8 @@ def write_mesh(
     refractive_index: float = 1.5,
 ) -> list[Path]:
     """Write a mesh by the output's suffix (see :func:`mesh_files`), all files or none."""
+    from printapp.outputs import atomic_write_files
+
     return atomic_write_files(mesh_files(out, vertices, faces, name=name, refractive_index=refractive_index))
 
 

@@ -77,7 +77,7 @@ def write_outputs(
     """Write fitted.toml (and fit.png, metrics.json): all written first, then renamed into place."""
     import json
 
-    from printapp.exporters import atomic_write_files
+    from printapp.outputs import atomic_write_files
 
     outputs: list[tuple[Path, bytes]] = [(toml_path, fitted_toml(result).encode())]
     if preview_path is not None:

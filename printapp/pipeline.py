@@ -19,18 +19,31 @@ import numpy as np
 
 from printapp.brdf import brdf_arrays, npz_bytes
 from printapp.design import Design, TileBase, resolved_toml
-from printapp.exporters import OutputFolder, png_bytes, stl_bytes, threemf_bytes
+from printapp.exporters import png_bytes, stl_bytes, threemf_bytes
 from printapp.mesh import (
     SolidCheck,
     check_solid,
     combine_solids,
     winding_verdict,
 )
+from printapp.outputs import OutputFolder
 from printapp.progress import StageTimer
 from printapp.relief import as_printed, build_relief, fits_printer, slice_tile
 from render.microfacet import SlopeRoughness, slope_roughness
 from render.mitsuba_adapter import StudioLight
 from slicing import slice_mesh, write_sl1
+
+DESIGN_OUTPUTS = (
+    "model.stl",
+    "model.3mf",
+    "slices.sl1",
+    "preview.png",
+    "brdf.npz",
+    "design.resolved.toml",
+    "report.html",
+    "manifest.json",
+)
+"""Every file a design run may write into its folder, in the order the manifest lists them."""
 
 
 @dataclass
@@ -179,7 +192,7 @@ def run_design(
     from printapp.report import report_html, sweep_settings
     from render.mitsuba_adapter import choose_variant, to_srgb8
 
-    with OutputFolder(out_dir) as out, StageTimer(quiet=quiet) as timer:
+    with OutputFolder(out_dir, owned=DESIGN_OUTPUTS.__contains__) as out, StageTimer(quiet=quiet) as timer:
         named_material = None
         if design.material.name is not None:
             from printapp.material_design import derive_design_material, render_choice
@@ -336,18 +349,7 @@ def run_design(
                 "forced": bool(force and not ok),
             },
         }
-        staged = [
-            n
-            for n in (
-                "model.stl",
-                "model.3mf",
-                "slices.sl1",
-                "preview.png",
-                "brdf.npz",
-                "design.resolved.toml",
-            )
-            if out.path(n).exists()
-        ] + ["report.html"]
+        staged = [n for n in DESIGN_OUTPUTS[:-2] if out.path(n).exists()] + ["report.html"]
         manifest["outputs"] = [*staged, "manifest.json"]
         with timer.stage("report", "report (report.html)"):
             out.write_text(
@@ -362,7 +364,7 @@ def run_design(
             )
         manifest["stages_s"] = dict(timer.seconds)
         out.write_text("manifest.json", json.dumps(manifest, indent=2) + "\n")
-        written = out.commit(staged + ["manifest.json"])
+        written = sorted(out.commit(), key=lambda path: DESIGN_OUTPUTS.index(path.name))
     return Outcome(
         manifest=manifest,
         written=written,

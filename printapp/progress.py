@@ -9,6 +9,8 @@ from contextlib import contextmanager
 from rich.console import Console
 from rich.progress import BarColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 
+from printapp.interrupts import check as check_interrupt
+
 
 class StageTimer:
     """Times named stages and shows each as a progress line on stderr unless ``quiet``."""
@@ -36,10 +38,12 @@ class StageTimer:
     @contextmanager
     def stage(self, name: str, label: str) -> Iterator[None]:
         """Time the block as stage ``name``; show ``label`` while it runs."""
+        check_interrupt()  # a Ctrl-C that a dependency swallowed stops the run here
         task = self._progress.add_task(label, total=None)
         start = time.perf_counter()
         try:
             yield
+            check_interrupt()
         finally:
             self.seconds[name] = round(time.perf_counter() - start, 4)
             self._progress.update(task, total=1, completed=1)

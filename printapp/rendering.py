@@ -223,8 +223,9 @@ def render_design_file(
     """
     from printapp.design import load_design
     from printapp.errors import PrintappError
-    from printapp.exporters import atomic_write_files, png_bytes
+    from printapp.exporters import png_bytes
     from printapp.mesh import combine_solids
+    from printapp.outputs import atomic_write_files
     from printapp.relief import appearance_field, build_relief
     from render.mitsuba_adapter import to_srgb8
 

@@ -11,6 +11,11 @@ from typing import Any
 from printapp.errors import DesignError
 
 
+def _png_stack_file(name: str) -> bool:
+    """Files of a PNG stack that a previous ``--png-dir`` run may have left."""
+    return name == "config.ini" or (len(name) == 9 and name.endswith(".png") and name[:5].isdigit())
+
+
 @dataclass(frozen=True)
 class Sliced:
     """The layers of a model and what was written."""
@@ -42,8 +47,8 @@ def slice_model_file(
         For an unknown printer, a wrong suffix, a mesh that is not closed, or a model
         the printer cannot hold (layer height, size).
     """
-    from printapp.exporters import OutputFolder, atomic_write_bytes
     from printapp.mesh import load_closed_mesh
+    from printapp.outputs import OutputFolder, atomic_write_bytes
     from slicing import UnknownPrinterError, find_printer, slice_mesh, write_sl1
     from slicing.sl1 import encoded_layers
 
@@ -65,7 +70,7 @@ def slice_model_file(
     archive_bytes = buffer.getvalue()
     if png_dir is None:
         return Sliced(slices, stats.volume_ml, profile.label, [atomic_write_bytes(out, archive_bytes)])
-    with OutputFolder(png_dir) as folder:
+    with OutputFolder(png_dir, owned=_png_stack_file) as folder:
         with zipfile.ZipFile(io.BytesIO(archive_bytes)) as archive:
             folder.write_bytes("config.ini", archive.read("config.ini"))
         for k, png in encoded_layers(slices):

@@ -108,7 +108,7 @@ def write_texture_from_file(path: Path, out: Path, size: int, width_mm: float | 
 
     from printapp.design import load_design
     from printapp.errors import PrintappError
-    from printapp.exporters import atomic_write_bytes
+    from printapp.outputs import atomic_write_bytes
 
     design = load_design(path)
     if width_mm is None:

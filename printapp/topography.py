@@ -460,7 +460,7 @@ def analyse_heightmap(
     import io
     import json
 
-    from printapp.exporters import atomic_write_files
+    from printapp.outputs import atomic_write_files
 
     if out is not None and out.suffix.lower() != ".npy":
         raise DesignError(f"{out}: expected an output file ending in .npy")

@@ -8,7 +8,8 @@ import pytest
 import trimesh
 
 from printapp.errors import DesignError
-from printapp.exporters import OutputFolder, atomic_write_files, stl_bytes, threemf_bytes
+from printapp.exporters import stl_bytes, threemf_bytes
+from printapp.outputs import FILE_MODE, OutputFolder, atomic_write_files, remove_stale_staging
 
 
 @pytest.fixture
@@ -36,16 +37,68 @@ def test_3mf_round_trip_and_determinism(sphere):
     assert back.volume == pytest.approx(sphere.volume, rel=1e-6)
 
 
-def test_output_folder_moves_only_on_commit(tmp_path):
-    dest = tmp_path / "out"
+def test_output_folder_moves_only_on_commit_and_creates_nothing_before(tmp_path):
+    dest = tmp_path / "deep" / "out"
     with pytest.raises(RuntimeError), OutputFolder(dest) as out:
         out.write_text("a.txt", "half")
         raise RuntimeError("interrupted")
-    assert list(dest.iterdir()) == []
+    assert list(tmp_path.iterdir()) == []  # neither the folder nor its parent nor a staging folder
     with OutputFolder(dest) as out:
         out.write_text("a.txt", "whole")
         out.commit()
     assert [p.name for p in dest.iterdir()] == ["a.txt"]
+    assert [p.name for p in dest.parent.iterdir()] == ["out"]
+
+
+def test_output_folder_swaps_in_whole_and_leaves_nothing_stale(tmp_path):
+    dest = tmp_path / "out"
+    with OutputFolder(dest) as out:
+        out.write_text("model.stl", "old model")
+        out.write_text("manifest.json", "old")
+        out.commit()
+    with OutputFolder(dest) as out:  # a failed verdict: no model this time
+        out.write_text("manifest.json", "failed")
+        out.commit()
+    assert sorted(p.name for p in dest.iterdir()) == ["manifest.json"]
+    assert (dest / "manifest.json").read_text() == "failed"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+
+
+def test_output_folder_keeps_files_it_does_not_own(tmp_path):
+    dest = tmp_path / "out"
+    dest.mkdir()
+    (dest / "notes.txt").write_text("mine")
+    (dest / "model.stl").write_text("stale")
+    with OutputFolder(dest, owned=lambda name: name != "notes.txt") as out:
+        out.write_text("manifest.json", "new")
+        out.commit()
+    assert sorted(p.name for p in dest.iterdir()) == ["manifest.json", "notes.txt"]
+
+
+def test_outputs_get_the_umask_mode(tmp_path):
+    single = atomic_write_files([(tmp_path / "a.bin", b"x")])[0]
+    with OutputFolder(tmp_path / "out") as out:
+        out.write_bytes("b.bin", b"y")
+        (folder_file,) = out.commit()
+    assert single.stat().st_mode & 0o777 == FILE_MODE
+    assert folder_file.stat().st_mode & 0o777 == FILE_MODE
+
+
+def test_a_killed_runs_staging_is_removed_by_the_next_run(tmp_path):
+    import subprocess
+    import sys
+
+    dead = subprocess.run(
+        [sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True
+    )
+    pid = int(dead.stdout)
+    stale = tmp_path / f".out.printapp-partial-{pid}-abc123"
+    stale.mkdir()
+    (stale / "model.stl").write_text("half")
+    live = tmp_path / f".out.printapp-partial-{__import__('os').getpid()}-def456"
+    live.mkdir()
+    assert remove_stale_staging(tmp_path / "out") == [stale]
+    assert not stale.exists() and live.exists()
 
 
 def test_output_folder_that_is_a_file(tmp_path):

@@ -88,9 +88,20 @@ def _root(
 
 
 def main() -> None:
-    """Console-script entry point."""
+    """Console-script entry point: the app, with Ctrl-C and SIGTERM ending it cleanly (exit 130, 143)."""
+    from printapp.interrupts import Interrupted, install_handlers, received
+
+    install_handlers()
     try:
         app()
-    except KeyboardInterrupt:
-        err.print("interrupted; no partial outputs were left")
-        sys.exit(130)
+    except Interrupted as exc:
+        err.print(f"{exc.name}; no partial outputs were left")
+        sys.exit(exc.exit_code)
+    except SystemExit:
+        signum = received()
+        if signum is None:
+            raise
+        # The signal was swallowed somewhere below, but every output was held back.
+        stopped = Interrupted(signum)
+        err.print(f"{stopped.name}; no partial outputs were left")
+        sys.exit(stopped.exit_code)

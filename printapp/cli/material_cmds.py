@@ -74,13 +74,13 @@ def material_command(
     ] = None,
 ) -> None:
     """Optical properties of a material from its particles (Lorenz-Mie): sigma_s, sigma_a, g, in RGB too."""
-    from printapp.exporters import atomic_write_bytes
     from printapp.material_report import (
         material_plot_png,
         material_report,
         parse_parameters,
         parse_wavelengths,
     )
+    from printapp.outputs import atomic_write_bytes
 
     values = parse_parameters(param or [])
     lam = parse_wavelengths(wavelengths_nm)

@@ -66,7 +66,7 @@ def texture(
     (or of a fragment written by `printapp fit`) on a square of --width-mm, coloured by its
     palette; .npy then holds its values.
     """
-    from printapp.exporters import atomic_write_bytes
+    from printapp.outputs import atomic_write_bytes
     from printapp.texture import grey_png_bytes, texture_image, write_texture_from_file
     from printapp.texture_kinds import texture_kind
 

@@ -20,6 +20,7 @@ from numba import njit
 
 from noise.heightfield import HeightField
 from printapp.errors import PrintappError
+from printapp.memory import BASE_BYTES, BRDF_BYTES_PER_SAMPLE, fits, require
 
 if TYPE_CHECKING:
     from render.appearance import Appearance
@@ -105,19 +106,22 @@ def heightfield_from_mesh(path: Path, pitch_mm: float | None = None) -> HeightFi
         top = faces[up]
         edges = np.linalg.norm(vertices[top] - vertices[np.roll(top, 1, axis=1)], axis=2).ravel()
         pitch_mm = float(np.median(edges))
-    if not (pitch_mm > 0):
-        raise PrintappError(f"--pitch-mm: expected a positive pitch, got {pitch_mm}")
+    if not (math.isfinite(pitch_mm) and pitch_mm > 0):
+        raise PrintappError(f"--pitch-mm: expected a positive, finite pitch, got {pitch_mm}")
     lo, hi = vertices.min(axis=0), vertices.max(axis=0)
-    nx = int((hi[0] - lo[0]) / pitch_mm) - 1
-    ny = int((hi[1] - lo[1]) / pitch_mm) - 1
-    if nx < 8 or ny < 8:
+    nx_f, ny_f = (hi[0] - lo[0]) / pitch_mm - 1, (hi[1] - lo[1]) / pitch_mm - 1
+    if nx_f < 8 or ny_f < 8:
         raise PrintappError(
             f"{path}: the tile is too small for pitch {pitch_mm:g} mm (fewer than 8 x 8 samples)"
         )
-    if nx * ny > 16_000_000:
-        raise PrintappError(
-            f"--pitch-mm: {pitch_mm:g} mm gives {nx} x {ny} samples; expected at most 16 million"
-        )
+    area = float((hi[0] - lo[0]) * (hi[1] - lo[1]))
+    require(
+        BASE_BYTES + nx_f * ny_f * BRDF_BYTES_PER_SAMPLE,
+        what=f"a {nx_f:.0f} x {ny_f:.0f}-sample top surface",
+        setting="--pitch-mm",
+        fitting=f"--pitch-mm {math.sqrt(area / max(fits(BRDF_BYTES_PER_SAMPLE), 1.0)):.4g} fits",
+    )
+    nx, ny = int(nx_f), int(ny_f)
     heights = np.full((ny, nx), -np.inf)
     _top_surface(vertices, faces, lo[0] + pitch_mm, lo[1] + pitch_mm, pitch_mm, heights)
     if not np.all(np.isfinite(heights)):
@@ -284,6 +288,12 @@ def predict_file(
             source, width_mm=width_mm, depth_mm=depth_mm, pitch_mm=pitch_mm, flatten=flatten
         )
         field, origin = corrected.field(), "height map"
+        ny, nx = field.shape
+        require(
+            BASE_BYTES + float(nx) * ny * BRDF_BYTES_PER_SAMPLE,
+            what=f"tracing a {nx} x {ny}-sample height map",
+            setting=str(source),
+        )
     n_ior = design_ior if ior is None else ior
     rho = design_albedo if body_albedo is None else body_albedo
     if not (1.0 <= n_ior <= 3.0):

@@ -10,7 +10,6 @@ degrees with every default filled in, and loads to the same design.
 from __future__ import annotations
 
 import math
-import tomllib
 from importlib.resources import as_file, files
 from pathlib import Path
 from typing import Annotated, Any, Literal
@@ -32,7 +31,9 @@ _UNIT_ALIASES: dict[str, tuple[str, float]] = {
     "_cm": ("_mm", 10.0),
     "_deg": ("_rad", math.pi / 180.0),
 }
-_MAX_GRID_SIDE = 4096
+_MAX_GRID_SIDE = 100_000
+"""Samples along a tile's side beyond which a design is refused outright (the memory budget refuses far
+fewer on most machines; see :mod:`printapp.memory`)."""
 
 
 class _Section(BaseModel):
@@ -425,14 +426,7 @@ def _include_texture(data: Any, path: Path) -> Any:
     if not isinstance(name, str) or not name:
         raise DesignError(f"{path}: texture.from: expected the name of a TOML file, got {short_repr(name)}")
     source = Path(name) if Path(name).is_absolute() else path.parent / name
-    try:
-        fragment = tomllib.loads(source.read_bytes().decode("utf-8"))
-    except FileNotFoundError:
-        raise DesignError(f"{path}: texture.from: no such file {source}") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise DesignError(f"{path}: texture.from: cannot read {source} as UTF-8 text ({exc})") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise DesignError(f"{path}: texture.from: TOML syntax error in {source}: {exc}") from None
+    fragment = read_toml(source, f"{path}: texture.from {source}", "texture fragment", DesignError)
     included = fragment.get("texture")
     if not isinstance(included, dict):
         raise DesignError(f"{path}: texture.from: expected a [texture] table in {source}")

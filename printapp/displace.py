@@ -19,6 +19,8 @@ class Displaced:
     overlap_note: str | None
     """A self-overlap of less than half a pixel (the printer cures the union), else None."""
     written: list[Path]
+    repair_note: str | None = None
+    """With ``--repair``: parts found, closed and united (nothing is dropped)."""
 
 
 def displace_mesh_file(
@@ -66,6 +68,7 @@ def displace_mesh_file(
     }
     design = design_from_dict(options, "options")
     base = load_closed_mesh(model, scale, repair=repair)
+    repaired = base.metadata.get("repair")
     relief = build_relief(design, base=base)
     if folded_triangles(relief.undisplaced, relief.mesh):
         raise DesignError(f"{model}: the displaced mesh still folds over; use a smaller --amplitude-mm")
@@ -87,4 +90,6 @@ def displace_mesh_file(
             )
         note = overlap.message if overlap.slight else None
     written = write_mesh(out, relief.mesh.vertices, relief.mesh.faces, refractive_index=refractive_index)
-    return Displaced(solid, relief.softened_vertices, note, written)
+    return Displaced(
+        solid, relief.softened_vertices, note, written, None if repaired is None else repaired.sentence()
+    )

@@ -10,6 +10,7 @@ import numpy as np
 
 from noise.heightfield import HeightField
 from printapp.errors import DesignError
+from printapp.memory import BASE_BYTES, EMBOSS_BYTES_PER_SAMPLE, fits, require
 from slicing import UnknownPrinterError, find_printer
 
 MAX_SAMPLES = 16_000_000
@@ -125,7 +126,24 @@ def emboss_heightmap(
     corrected = load_corrected(source, width_mm=width_mm, depth_mm=depth_mm, flatten=flatten)
     heights, px, py = corrected.heights_mm, corrected.pitch_x_mm, corrected.pitch_y_mm
     width, depth = (heights.shape[1] - 1) * px, (heights.shape[0] - 1) * py
+    fits_display = (width <= profile.display_width_mm and depth <= profile.display_height_mm) or (
+        width <= profile.display_height_mm and depth <= profile.display_width_mm
+    )
+    if not fits_display:
+        scale = "--width-mm" if source.suffix.lower() in (".png", ".tif", ".tiff") else "its pixel size"
+        raise DesignError(
+            f"{source}: the map spans {width:.6g} x {depth:.6g} mm ({scale}), larger than the "
+            f"{profile.label}'s {profile.display_width_mm:g} x {profile.display_height_mm:g} mm display; "
+            "expected a map that fits the printer"
+        )
     nx, ny = grid_for_pitch(width, depth, target, adaptive=max_error_um is not None)
+    finest = math.sqrt(width * depth / max(fits(EMBOSS_BYTES_PER_SAMPLE), 1.0))
+    require(
+        BASE_BYTES + float(nx) * ny * EMBOSS_BYTES_PER_SAMPLE,
+        what=f"a slab of {nx} x {ny} samples",
+        setting="--pitch-mm",
+        fitting=f"--pitch-mm {finest:.4g} fits",
+    )
     resampled = resample(heights, px, py, nx, ny, target)
     resampled -= resampled.min()
     field = HeightField(resampled, width / (nx - 1), depth / (ny - 1))

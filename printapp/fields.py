@@ -26,6 +26,11 @@ _EXPECTED = (
 )
 
 
+LIC_MAX_TAPS = 2e10
+"""Most noise samples one LIC may take (pixels or vertices times taps per streamline): about a
+minute on two cores; longer streamlines are refused rather than left to run for hours."""
+
+
 def _vector(arg: str, spec: str) -> np.ndarray:
     try:
         values = np.array([float(x) for x in arg.split(",")])
@@ -88,20 +93,15 @@ def field_on_grid(
         cx = 0.5 * (x[0] + x[-1])
         cy = 0.5 * (y[0] + y[-1])
         return -(yy - cy), xx - cx
-    from PIL import Image, UnidentifiedImageError
+    from PIL import Image
+
+    from printapp.inputs import open_image
 
     path = Path(arg)
     if base_dir is not None and not path.is_absolute():
         path = base_dir / path
-    try:
-        with Image.open(path) as image:
-            grey = np.asarray(
-                image.convert("L").resize((len(x), len(y)), Image.Resampling.BILINEAR), dtype=float
-            )
-    except FileNotFoundError:
-        raise DesignError(f"{path}: no such field image") from None
-    except (UnidentifiedImageError, OSError) as exc:
-        raise DesignError(f"{path}: cannot read the field image ({exc})") from None
+    with open_image(path, "field image") as image:
+        grey = np.asarray(image.convert("L").resize((len(x), len(y)), Image.Resampling.BILINEAR), dtype=float)
     # Image rows run downwards; our y runs upwards.
     angle = grey[::-1] / 255.0 * math.pi
     return np.cos(angle), np.sin(angle)
@@ -109,18 +109,15 @@ def field_on_grid(
 
 def _angle_map(path: Path, size: int = 1024) -> np.ndarray:
     """An angle map file as radians (grey 0..255 -> 0..pi), row 0 at the bottom (v = 0)."""
-    from PIL import Image, UnidentifiedImageError
+    from PIL import Image
 
-    try:
-        with Image.open(path) as image:
-            grey = image.convert("L")
-            if max(grey.size) > size:
-                grey = grey.resize((size, size), Image.Resampling.BILINEAR)
-            values = np.asarray(grey, dtype=float)
-    except FileNotFoundError:
-        raise DesignError(f"{path}: no such field image") from None
-    except (UnidentifiedImageError, OSError) as exc:
-        raise DesignError(f"{path}: cannot read the field image ({exc})") from None
+    from printapp.inputs import open_image
+
+    with open_image(path, "field image") as image:
+        grey = image.convert("L")
+        if max(grey.size) > size:
+            grey = grey.resize((size, size), Image.Resampling.BILINEAR)
+        values = np.asarray(grey, dtype=float)
     return values[::-1] / 255.0 * math.pi
 
 
@@ -168,6 +165,13 @@ def surface_lic_values(mesh, texture, step_mm: float, base=None) -> np.ndarray:
 
     vertices = np.asarray(mesh.vertices)
     faces = np.asarray(mesh.faces)
+    taps = 2.0 * len(vertices) * (texture.length_mm / step_mm + 1.0)
+    if taps > LIC_MAX_TAPS:
+        raise DesignError(
+            f"texture.length_mm: {texture.length_mm:g} mm streamlines at {step_mm:g} mm steps from "
+            f"{len(vertices):,} vertices are {taps:.3g} noise samples, more than {LIC_MAX_TAPS:.0e} "
+            f"(about a minute); texture.length_mm = {texture.length_mm * LIC_MAX_TAPS / taps:.3g} fits"
+        )
     field = field_on_mesh(texture.field, mesh, base)
     return lic_surface(
         vertices,

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -12,8 +13,6 @@ from noise.frames import angle_weighted_normals
 from noise.heightfield import HeightField
 from printapp.errors import DesignError
 from printapp.slab import slab_arrays
-
-MAX_TRIANGLES = 8_000_000
 
 
 def slab_from_heightfield(field: HeightField, base_thickness_mm: float) -> trimesh.Trimesh:
@@ -79,25 +78,34 @@ def read_mesh(path: str | Path, *, merge: bool = False) -> trimesh.Trimesh:
     Raises
     ------
     DesignError
-        If the file is missing, unreadable or holds no triangles.
+        If the file is missing, not a regular file, larger than the memory budget holds
+        (a mesh costs about ten times its file's bytes once read), unreadable, or holds
+        no triangles.
     """
-    path = Path(path)
-    if not path.is_file():
-        raise DesignError(f"{path}: no such mesh file")
+    from printapp.inputs import regular_file
+    from printapp.memory import require
+
+    path = regular_file(path, "mesh")
+    require(10.0 * path.stat().st_size, what="reading this mesh", setting=str(path))
     try:
         loaded = trimesh.load(path, force="mesh", process=merge)
+    except MemoryError:
+        raise DesignError(f"{path}: the mesh does not fit in memory") from None
     except Exception as exc:  # trimesh raises many kinds for malformed files
         raise DesignError(f"{path}: cannot read the mesh ({type(exc).__name__}: {exc})") from None
     if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
         raise DesignError(f"{path}: expected a triangle mesh, found no triangles")
+    vertices = np.asarray(loaded.vertices)
+    if not np.all(np.isfinite(vertices)):
+        raise DesignError(f"{path}: the mesh has vertices at NaN or infinity")
     return loaded
 
 
 def load_closed_mesh(path: str | Path, scale: float = 1.0, repair: bool = False) -> trimesh.Trimesh:
     """Read a mesh file, merge duplicate vertices, scale it to mm, and insist that it is closed.
 
-    With ``repair``, an open or inconsistently oriented mesh is first made watertight by
-    pymeshfix (Attene's MeshFix: fills holes, removes degenerate and intersecting pieces).
+    With ``repair``, an open or inconsistently oriented mesh is first closed part by part
+    (:func:`repair_mesh`); the result's ``metadata["repair"]`` is its :class:`RepairReport`.
 
     Raises
     ------
@@ -107,15 +115,8 @@ def load_closed_mesh(path: str | Path, scale: float = 1.0, repair: bool = False)
     loaded = read_mesh(path, merge=True)
     mesh = trimesh.Trimesh(vertices=loaded.vertices * scale, faces=loaded.faces, process=False)
     if repair and not (mesh.is_watertight and mesh.is_winding_consistent):
-        import pymeshfix
-
-        fixer = pymeshfix.MeshFix(
-            np.asarray(mesh.vertices, dtype=np.float64), np.asarray(mesh.faces, dtype=np.int32)
-        )
-        fixer.repair()
-        mesh = trimesh.Trimesh(vertices=fixer.points, faces=fixer.faces, process=False)
-        if len(mesh.faces) == 0:
-            raise DesignError(f"{path}: the repair left no triangles")
+        mesh, report = repair_mesh(mesh, str(path))
+        mesh.metadata["repair"] = report
     if not mesh.is_watertight:
         open_edges = int(np.sum(trimesh.grouping.group_rows(mesh.edges_sorted, require_count=1).shape[0]))
         raise DesignError(
@@ -129,22 +130,132 @@ def load_closed_mesh(path: str | Path, scale: float = 1.0, repair: bool = False)
     return mesh
 
 
-def refine_to_edge_length(mesh: trimesh.Trimesh, max_edge_mm: float) -> trimesh.Trimesh:
+def refined_triangle_bound(mesh: trimesh.Trimesh, max_edge_mm: float) -> int:
+    """An upper bound on the triangles :func:`refine_to_edge_length` makes: as if every face
+    were split 4-way until its longest edge L is at most ``max_edge_mm``
+    (``4^ceil(log2(L / max_edge))`` faces); bisecting only the long edges makes fewer."""
+    v = np.asarray(mesh.vertices, dtype=np.float64)
+    f = np.asarray(mesh.faces, dtype=np.int64)
+    edges = np.stack([v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 1]], v[f[:, 0]] - v[f[:, 2]]], axis=1)
+    longest = np.linalg.norm(edges, axis=2).max(axis=1)
+    splits = np.ceil(np.log2(np.maximum(longest / max_edge_mm, 1.0)))
+    return int(np.sum(4.0 ** np.minimum(splits, 40)))
+
+
+_GROWTH_PER_HALVING = 4.3
+"""Triangles gained by halving the edge length (measured on the CAD part: 4.27; 4 on smooth meshes)."""
+
+
+def _subdivide(mesh: trimesh.Trimesh, max_edge_mm: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    return trimesh.remesh.subdivide_to_size(
+        mesh.vertices, mesh.faces, max_edge=max_edge_mm, max_iter=40, return_index=True
+    )
+
+
+@dataclass(frozen=True)
+class RepairReport:
+    """What :func:`repair_mesh` did: parts found, parts closed, solids left after their union."""
+
+    parts_in: int
+    closed: int
+    solids_out: int
+
+    def sentence(self) -> str:
+        parts = "part" if self.parts_in == 1 else "parts"
+        solids = "solid" if self.solids_out == 1 else "solids"
+        return (
+            f"repaired {self.parts_in} {parts}: every one closed ({self.closed} needed it), "
+            f"united into {self.solids_out} {solids}"
+        )
+
+
+def repair_mesh(mesh: trimesh.Trimesh, label: str) -> tuple[trimesh.Trimesh, RepairReport]:
+    """Close an open mesh part by part, never dropping a part, and unite the parts into one solid.
+
+    Each connected part that is not already closed and consistently oriented is given to
+    pymeshfix on its own (Attene's MeshFix fills its holes and removes its degenerate
+    and self-intersecting triangles; with several parts at once it keeps only the
+    largest, which is how a teapot lost its spout, handle and lid). The closed parts are
+    then united with manifold3d, so parts that overlap (a spout through the body) become
+    one solid.
+
+    Raises
+    ------
+    DesignError
+        Naming the part (its number, triangles and centre) that cannot be closed, or if
+        the union is not a valid solid.
+    """
+    import manifold3d
+    import pymeshfix
+
+    parts = mesh.split(only_watertight=False)
+    solids = []
+    closed = 0
+    for k, part in enumerate(parts, start=1):
+        if not (part.is_watertight and part.is_winding_consistent):
+            fixer = pymeshfix.MeshFix(np.asarray(part.vertices, np.float64), np.asarray(part.faces, np.int32))
+            fixer.repair(remove_smallest_components=False)
+            fixed = trimesh.Trimesh(vertices=fixer.points, faces=fixer.faces, process=False)
+            if len(fixed.faces) == 0 or not (fixed.is_watertight and fixed.is_winding_consistent):
+                centre = ", ".join(f"{c:.3g}" for c in part.bounds.mean(axis=0))
+                raise DesignError(
+                    f"{label}: part {k} of {len(parts)} ({len(part.faces):,} triangles around ({centre}) mm) "
+                    "cannot be closed by the repair; expected parts that enclose a volume"
+                )
+            closed += 1
+            part = fixed
+        if part.volume < 0:
+            part.invert()
+        solids.append(_to_manifold(part))
+    united = (
+        manifold3d.Manifold.batch_boolean(solids, manifold3d.OpType.Add) if len(solids) > 1 else solids[0]
+    )
+    status = getattr(united.status(), "name", str(united.status()))
+    if not status.endswith("NoError") or united.num_tri() == 0:
+        raise DesignError(f"{label}: the repaired parts do not unite into a valid solid ({status})")
+    out = united.to_mesh()
+    result = trimesh.Trimesh(
+        vertices=np.asarray(out.vert_properties)[:, :3].astype(np.float64), faces=out.tri_verts, process=False
+    )
+    solids_out = len(result.split(only_watertight=False))
+    return result, RepairReport(len(parts), closed, solids_out)
+
+
+def refine_to_edge_length(
+    mesh: trimesh.Trimesh, max_edge_mm: float, setting: tuple[str, float] = ("the edge length", 1.0)
+) -> trimesh.Trimesh:
     """Split triangles until no edge is longer than ``max_edge_mm``; shared vertices stay shared.
 
     The result's ``metadata["parent_face"]`` holds, per new triangle, the index of the
-    input triangle it lies in.
+    input triangle it lies in. The size is checked against the memory budget first:
+    when the upper bound :func:`refined_triangle_bound` does not fit, the mesh is
+    refined at twice the edge (a quarter of the work) and the count extrapolated.
+    ``setting`` is the design key that set the edge length and its value per millimetre
+    of edge, for the refusal's "the largest that fits".
+
+    Raises
+    ------
+    DesignError
+        If the refined mesh would not fit the memory budget (with the finest edge that does).
     """
-    area = float(mesh.area)
-    expected = area / (0.43 * max_edge_mm**2)  # equilateral triangles of that edge length
-    if expected > MAX_TRIANGLES:
-        raise DesignError(
-            f"the relief needs about {expected:,.0f} triangles on this mesh (more than {MAX_TRIANGLES:,}); "
-            "increase texture.feature_size_mm or reduce base.scale"
+    from printapp.memory import BASE_BYTES, MESH_BYTES_PER_TRIANGLE, fits, require
+
+    room = fits(MESH_BYTES_PER_TRIANGLE)
+    if refined_triangle_bound(mesh, max_edge_mm) > room:
+        # Refine a coarser copy (at most about two million triangles) and extrapolate.
+        halvings = 1
+        while halvings < 20 and refined_triangle_bound(mesh, max_edge_mm * 2.0**halvings) > 2_000_000:
+            halvings += 1
+        coarse = len(_subdivide(mesh, max_edge_mm * 2.0**halvings)[1])
+        expected = coarse * _GROWTH_PER_HALVING**halvings
+        finest = max_edge_mm * math.sqrt(expected / max(room, 1.0))
+        require(
+            BASE_BYTES + expected * MESH_BYTES_PER_TRIANGLE,
+            what=f"a relief mesh of about {expected:,.0f} triangles (edges of {max_edge_mm:.4g} mm)",
+            setting=setting[0],
+            fitting=f"{setting[0]} = {finest * setting[1]:.4g} fits",
         )
-    vertices, faces, parent = trimesh.remesh.subdivide_to_size(
-        mesh.vertices, mesh.faces, max_edge=max_edge_mm, max_iter=20, return_index=True
-    )
+    vertices, faces, parent = _subdivide(mesh, max_edge_mm)
     refined = trimesh.Trimesh(vertices=vertices, faces=faces, process=False)
     refined.merge_vertices()  # keeps the faces and their order, renumbers the vertices
     out = trimesh.Trimesh(vertices=refined.vertices, faces=refined.faces, process=False)

@@ -5,6 +5,7 @@ Each stage is a pure function of the design and its seeds.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -45,6 +46,31 @@ class Relief:
     """For mesh bases: vertices whose relief was lowered so that no triangle folds."""
 
 
+def check_tile_memory(design: Design) -> None:
+    """Refuse a tile whose relief would not fit the memory budget, naming a pitch that would."""
+    from printapp.memory import BASE_BYTES, TILE_BYTES_PER_SAMPLE, fits, require
+    from printapp.texture import tile_grid_shape
+
+    assert isinstance(design.base, TileBase)
+    ny, nx, _, _ = tile_grid_shape(design.base, design.pitch_mm)
+    area = design.base.width_mm * design.base.depth_mm
+    finest = math.sqrt(area / max(fits(TILE_BYTES_PER_SAMPLE), 1.0))
+    setting = "relief.pitch_mm" if design.relief.pitch_mm is not None else "base.width_mm, base.depth_mm"
+    require(
+        BASE_BYTES + float(nx) * ny * TILE_BYTES_PER_SAMPLE,
+        what=f"a relief of {nx} x {ny} samples",
+        setting=setting,
+        fitting=f"relief.pitch_mm = {finest:.4g} fits",
+    )
+
+
+def _edge_setting(feature_edge_mm: float, pitch_mm: float, per_feature: float) -> tuple[str, float]:
+    """The key that sets a mesh's edge length, and its value per millimetre of edge."""
+    if feature_edge_mm >= pitch_mm:
+        return "texture.feature_size_mm", per_feature
+    return "relief.pitch_mm", 1.0
+
+
 def build_relief(design: Design, base: trimesh.Trimesh | None = None) -> Relief:
     """The displaced, closed model of a design (mm) and a flat patch of its relief.
 
@@ -53,6 +79,7 @@ def build_relief(design: Design, base: trimesh.Trimesh | None = None) -> Relief:
     texture = design.texture
     pitch = design.pitch_mm
     if isinstance(design.base, TileBase):
+        check_tile_memory(design)
         field_ = relief_heightfield(design)
         return Relief(mesh=slab_from_heightfield(field_, design.base.thickness_mm), patch=field_)
     assert isinstance(design.base, MeshBase)
@@ -62,13 +89,13 @@ def build_relief(design: Design, base: trimesh.Trimesh | None = None) -> Relief:
         # The smeared noise varies on the scale of its features across the streamlines:
         # two vertices per feature resolve it.
         edge = max(texture.feature_size_mm / 2.0, pitch)
-        refined = refine_to_edge_length(base, edge)
+        refined = refine_to_edge_length(base, edge, _edge_setting(texture.feature_size_mm / 2.0, pitch, 2.0))
         raw = surface_lic_values(refined, texture, step_mm=pitch, base=base)
     else:
         # Four vertices per base-octave feature along an edge resolve the relief's shape;
         # finer than the printer's pixel is wasted.
         edge = max(texture.feature_size_mm / 4.0, pitch)
-        refined = refine_to_edge_length(base, edge)
+        refined = refine_to_edge_length(base, edge, _edge_setting(texture.feature_size_mm / 4.0, pitch, 4.0))
         raw = evaluate_texture(np.asarray(refined.vertices), texture, pitch_mm=edge)
     lo, hi = float(raw.min()), float(raw.max())
     mesh, softened = displace_along_normals(

@@ -65,6 +65,11 @@ def slice_model_file(
         )
     except ValueError as exc:
         raise DesignError(f"{model}: {exc}") from None
+    if not any(area > 0.0 for area in slices.section_areas_mm2()):
+        raise DesignError(
+            f"{model}: the model cures no resin in any layer (smaller than a pixel or half a layer); "
+            "expected a printable model"
+        )
     buffer = io.BytesIO()
     stats = write_sl1(buffer, slices, out.stem)
     archive_bytes = buffer.getvalue()

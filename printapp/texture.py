@@ -158,8 +158,17 @@ def texture_image(kind: str, size: int, cells: float, options: dict[str, object]
         Naming the flag that is out of range, or the field image that cannot be read.
     """
     from printapp.errors import PrintappError
+    from printapp.memory import BASE_BYTES, budget_bytes, require
 
     spec = texture_kind(kind)
+    per_pixel = 160 if spec.points is None else 48  # LIC keeps a field, step maps and noise
+    largest = int(math.sqrt(max(0.0, (budget_bytes() - BASE_BYTES) / per_pixel)))
+    require(
+        BASE_BYTES + float(size) ** 2 * per_pixel,
+        what=f"a {size} x {size}-pixel {kind} image",
+        setting="--size",
+        fitting=f"--size {largest} fits",
+    )
     # No validation here on purpose: the command's ranges are wider than a design's (a
     # texture image may have 24 octaves), and the kernels check what they need.
     texture = Texture.model_construct(kind=kind, feature_size_mm=size / cells, **options)

@@ -191,14 +191,22 @@ def _lic_grid(
     x_mm: np.ndarray, y_mm: np.ndarray, texture: TextureParams, pitch_mm: float | None
 ) -> np.ndarray:
     from noise.lic import lic2d
-    from printapp.fields import field_on_grid
+    from printapp.fields import LIC_MAX_TAPS, field_on_grid
 
     values = _noise().sparse_convolution_grid(
         x_mm / texture.feature_size_mm, y_mm / texture.feature_size_mm, **_common(texture)
     )
-    u, v = field_on_grid(texture.field, x_mm, y_mm)
     step = float(x_mm[1] - x_mm[0]) if pitch_mm is None else pitch_mm
-    return lic2d(u, v, values, length=max(texture.length_mm / step, 1.0))
+    length_px = max(texture.length_mm / step, 1.0)
+    taps = 2.0 * len(x_mm) * len(y_mm) * (length_px + 1.0)
+    if taps > LIC_MAX_TAPS:
+        fitting = texture.length_mm * LIC_MAX_TAPS / taps
+        raise ValueError(
+            f"length: {length_px:.6g}-pixel streamlines over {len(x_mm)} x {len(y_mm)} pixels are {taps:.3g} "
+            f"noise samples, more than {LIC_MAX_TAPS:.0e} (about a minute); at most {fitting:.3g} fits"
+        )
+    u, v = field_on_grid(texture.field, x_mm, y_mm)
+    return lic2d(u, v, values, length=length_px)
 
 
 _OCTAVES = ("octaves", "lacunarity", "H")

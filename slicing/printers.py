@@ -6,7 +6,6 @@ The profiles ship as ``printers.toml`` beside this module (data, not code). A
 
 from __future__ import annotations
 
-import math
 import tomllib
 from dataclasses import dataclass
 from importlib import resources
@@ -53,16 +52,11 @@ class PrinterProfile:
         return max(self.pitch_x_mm, self.pitch_y_mm)
 
     def layer_count(self, height_mm: float, layer_height_mm: float | None = None) -> int:
-        """Number of layers for a part ``height_mm`` tall, with PrusaSlicer's slice heights.
+        """Number of layers for a part ``height_mm`` tall (:func:`slicing.raster.layer_count`)."""
+        from slicing.raster import layer_count
 
-        Layer 0 is sliced at ``ilh / 2``, layer ``i`` at ``ilh + (i - 1/2) lh``, so a part
-        needs ``1 + ceil((height - ilh) / lh)`` layers.
-        """
         lh = self.layer_height_mm if layer_height_mm is None else layer_height_mm
-        ilh = self.initial_layer_height_mm
-        if height_mm <= ilh:
-            return 1
-        return 1 + math.ceil((height_mm - ilh) / lh - 1e-9)
+        return layer_count(height_mm, lh, self.initial_layer_height_mm)
 
 
 def _load_profiles() -> dict[str, PrinterProfile]:

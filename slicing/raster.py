@@ -22,19 +22,39 @@ import numpy as np
 from numba import njit, prange
 
 
-def slice_heights(height_mm: float, layer_height_mm: float, initial_layer_height_mm: float) -> np.ndarray:
-    """PrusaSlicer's slice heights for a part ``height_mm`` tall standing on z = 0.
+def layer_count(height_mm: float, layer_height_mm: float, initial_layer_height_mm: float) -> int:
+    """How many of PrusaSlicer's slice planes cut a part ``height_mm`` tall standing on z = 0.
 
-    Layer 0 is sliced at ``ilh / 2``, layer ``i >= 1`` at ``ilh + (i - 1/2) lh``; there are
-    ``1 + ceil((height - ilh) / lh)`` layers.
+    Layer 0 is sliced at ``ilh / 2``, layer ``i >= 1`` at ``ilh + (i - 1/2) lh``; a layer
+    exists when its plane lies below the top, so there are ``ceil((height - ilh) / lh +
+    1/2)`` layers above the first. (Counting ``1 + ceil((height - ilh) / lh)`` instead
+    adds an empty layer whenever the top lies in the lower half of a layer, as a float32
+    top of 1.70000005 mm does; PrusaSlicer 2.5 slices that model into 34 layers.) A top
+    within a millionth of a layer of a plane counts as on it. Returns 0 for a part below
+    the first plane.
     """
     if not (height_mm > 0 and layer_height_mm > 0 and initial_layer_height_mm > 0):
         raise ValueError("height, layer heights: expected positive values")
-    n = (
-        1
-        if height_mm <= initial_layer_height_mm
-        else 1 + math.ceil((height_mm - initial_layer_height_mm) / layer_height_mm - 1e-9)
-    )
+    if height_mm <= initial_layer_height_mm / 2.0:
+        return 0
+    above = max(0, math.ceil((height_mm - initial_layer_height_mm) / layer_height_mm + 0.5 - 1e-6) - 1)
+    return 1 + above
+
+
+def slice_heights(height_mm: float, layer_height_mm: float, initial_layer_height_mm: float) -> np.ndarray:
+    """PrusaSlicer's slice heights for a part ``height_mm`` tall standing on z = 0 (see :func:`layer_count`).
+
+    Raises
+    ------
+    ValueError
+        If the part lies wholly below the first slice plane (``ilh / 2``): no layer would cut it.
+    """
+    n = layer_count(height_mm, layer_height_mm, initial_layer_height_mm)
+    if n == 0:
+        raise ValueError(
+            f"the part is {height_mm:g} mm tall, below the first slice plane at "
+            f"{initial_layer_height_mm / 2:g} mm; expected a part at least half a layer tall"
+        )
     k = np.arange(n, dtype=np.float64)
     z = initial_layer_height_mm + (k - 0.5) * layer_height_mm
     z[0] = initial_layer_height_mm / 2.0

@@ -33,6 +33,10 @@ FADED_LAYERS = 10
 FAST_TILT_S = 5.0
 SLOW_TILT_S = 8.0
 AREA_FILL_PERCENT = 50.0
+SLOW_MOVE_DELAY_S = 1.0
+"""PrusaSlicer's "exposure_slow_move_delay_before": a slow layer waits a second more."""
+TOWER_S_PER_MM = 5.0
+"""PrusaSlicer's tower move time per millimetre of layer height."""
 _ZIP_EPOCH = (1980, 1, 1, 0, 0, 0)
 
 
@@ -126,8 +130,12 @@ class LayerStats:
     areas_mm2: list[float]
     volume_ml: float
 
+    def slow(self, display_area_mm2: float) -> list[bool]:
+        """Per layer: whether it cures more than the area-fill share of the display (a slow tilt)."""
+        return [a > AREA_FILL_PERCENT / 100.0 * display_area_mm2 for a in self.areas_mm2]
+
     def n_slow(self, display_area_mm2: float) -> int:
-        return sum(1 for a in self.areas_mm2 if a > AREA_FILL_PERCENT / 100.0 * display_area_mm2)
+        return sum(self.slow(display_area_mm2))
 
 
 def encoded_layers(slices: Slices, workers: int = 2) -> Iterator[tuple[int, bytes]]:
@@ -196,18 +204,31 @@ def _prusaslicer_ini(profile: PrinterProfile, layer_height_mm: float) -> str:
     return "".join(f"{k} = {v}\n" for k, v in sorted(values.items()))
 
 
-def print_time_s(profile: PrinterProfile, n_layers: int, n_slow: int) -> float:
-    """Exposure (the first layers fading from the initial to the normal time) plus tilts."""
+def print_time_s(profile: PrinterProfile, layer_heights_mm: list[float], slow: list[bool]) -> float:
+    """The print time PrusaSlicer 2.5 writes (``SLAPrint::Steps::merge_slices_and_eval_stats``).
+
+    Per layer: its exposure (the first three layers at the initial time; then the time
+    steps down by ``(initial - normal) / (faded + 1)`` until it reaches the normal time),
+    the tilt (slow for layers curing more than ``area_fill`` of the display, else fast),
+    one more second before a slow layer's exposure, and ``5 s/mm`` of tower move for the
+    layer's height. Checked against PrusaSlicer 2.5's config.ini on the SL1 profile
+    (exactly, for fast and slow layers; see tests/test_slicing.py).
+    """
+    exposure, initial = profile.exposure_s, profile.initial_exposure_s
+    delta = (initial - exposure) / (FADED_LAYERS + 1)
+    fading = initial
     total = 0.0
-    for k in range(n_layers):
-        if k == 0:
-            total += profile.initial_exposure_s
-        elif k <= FADED_LAYERS:
-            f = k / (FADED_LAYERS + 1)
-            total += profile.initial_exposure_s * (1 - f) + profile.exposure_s * f
+    for k, (height, is_slow) in enumerate(zip(layer_heights_mm, slow, strict=True)):
+        if k < 3:
+            time = initial
+        elif fading > exposure:
+            fading -= delta
+            time = fading
         else:
-            total += profile.exposure_s
-    return total + (n_layers - n_slow) * FAST_TILT_S + n_slow * SLOW_TILT_S
+            time = exposure
+        time += SLOW_TILT_S + SLOW_MOVE_DELAY_S if is_slow else FAST_TILT_S
+        total += time + height * TOWER_S_PER_MM
+    return total
 
 
 def write_sl1(stream: BinaryIO, slices: Slices, job_name: str, workers: int = 2) -> LayerStats:
@@ -222,7 +243,8 @@ def write_sl1(stream: BinaryIO, slices: Slices, job_name: str, workers: int = 2)
     areas = [float(a) for a in slices.section_areas_mm2()]
     thickness = [p.initial_layer_height_mm] + [slices.layer_height_mm] * (len(areas) - 1)
     stats = LayerStats(areas_mm2=areas, volume_ml=float(np.dot(areas, thickness)) / 1000.0)
-    n_slow = stats.n_slow(p.display_width_mm * p.display_height_mm)
+    slow = stats.slow(p.display_width_mm * p.display_height_mm)
+    n_slow = sum(slow)
     from importlib.metadata import version
 
     config = {
@@ -239,7 +261,7 @@ def write_sl1(stream: BinaryIO, slices: Slices, job_name: str, workers: int = 2)
         "numFast": str(slices.n_layers - n_slow),
         "numSlow": str(n_slow),
         "printProfile": f"{slices.layer_height_mm:g} printapp",
-        "printTime": f"{print_time_s(p, slices.n_layers, n_slow):.6f}",
+        "printTime": f"{print_time_s(p, thickness, slow):.6f}",
         "printerModel": p.name.replace("prusa-", "").upper(),
         "printerProfile": p.label,
         "printerVariant": "default",

@@ -34,7 +34,10 @@ def error_of(data) -> str:
         ({"texture": "fbm"}, "texture: expected a table, got 'fbm'"),
         ({"relief": {"amplitude_um": -3}}, "relief.amplitude_um: expected a value in (0, 50000], got -3"),
         ({"relief": {"amplitude_um": 3, "amplitude_mm": 1}}, "give either 'amplitude_um' or 'amplitude_mm'"),
-        ({"relief": {"pitch_mm": 0.001}}, "gives 20000 samples along a 20 mm side; expected at most 4096"),
+        (
+            {"relief": {"pitch_mm": 0.0001}},
+            "gives 200000 samples along a 20 mm side; expected at most 100000",
+        ),
         ({"base": {"width_mm": "20"}}, "base.width_mm: expected a number, got '20'"),
         ({"base": {"shape": "sphere"}}, 'base: expected shape = "tile" or "mesh"'),
         ({"printer": {"name": "prusa-sl2"}}, "unknown printer 'prusa-sl2'"),

@@ -364,7 +364,7 @@ def test_texture_from_merges_the_fragment_under_the_designs_keys(tmp_path):
     texture = load_design(tmp_path / "d.toml").texture
     assert (texture.kind, texture.feature_size_mm, texture.veins) == ("marble", 3.0, "sunk")
     (tmp_path / "e.toml").write_text('[texture]\nfrom = "missing.toml"\n')
-    with pytest.raises(DesignError, match="texture.from: no such file"):
+    with pytest.raises(DesignError, match="texture.from .*: no such texture fragment file"):
         load_design(tmp_path / "e.toml")
     (tmp_path / "f.toml").write_text('[texture]\nfrom = "d.toml"\n')
     with pytest.raises(DesignError, match="one level only"):

@@ -40,6 +40,36 @@ def sl1_bytes(mesh, **kwargs) -> bytes:
     return buffer.getvalue()
 
 
+def test_print_time_is_prusaslicers():
+    """PrusaSlicer 2.5.0's printTime on the SL1 profile (exposure 7.5 s, first 35 s), recorded
+    from its config.ini for boxes of 20 all-slow, 34 and 800 all-fast layers of 0.05 mm."""
+    from slicing.sl1 import print_time_s
+
+    sl1 = PRINTERS["prusa-sl1"]
+    assert print_time_s(sl1, [0.05] * 20, [True] * 20) == pytest.approx(555.0, abs=1e-6)
+    assert print_time_s(sl1, [0.05] * 34, [False] * 34) == pytest.approx(653.5, abs=1e-6)
+    assert print_time_s(sl1, [0.05] * 800, [False] * 800) == pytest.approx(10420.0, abs=1e-3)
+
+
+def test_a_float32_top_adds_no_empty_layer():
+    """A 1.7 mm box stored in float32 has its top at 1.70000005 mm: 34 layers, as PrusaSlicer 2.5 makes."""
+    top = float(np.float32(1.7))
+    assert top > 1.7
+    assert len(slice_heights(top, 0.05, 0.05)) == 34 == len(slice_heights(1.7, 0.05, 0.05))
+    assert len(slice_heights(1.7251, 0.05, 0.05)) == 35  # the plane at 1.725 cuts it
+    box = trimesh.creation.box(extents=(5.0, 5.0, 1.7))
+    box.apply_translation((0.0, 0.0, 0.85))
+    vertices = np.asarray(box.vertices, dtype=np.float32).astype(np.float64)
+    slices = slice_mesh(vertices, box.faces, SL1)
+    assert slices.n_layers == 34
+    assert all(area > 0 for area in slices.section_areas_mm2())
+
+
+def test_a_part_below_the_first_slice_plane_is_refused():
+    with pytest.raises(ValueError, match="below the first slice plane"):
+        slice_heights(1e-6, 0.05, 0.05)
+
+
 def test_slice_heights_follow_prusaslicer():
     z = slice_heights(3.0, 0.05, 0.05)
     assert len(z) == 1 + int(np.ceil((3.0 - 0.05) / 0.05))
@@ -171,7 +201,7 @@ def test_layers_match_prusaslicer(tmp_path, lshape):
     lshape.export(stl)
     subprocess.run(
         ["prusa-slicer", "--datadir", str(tmp_path / "dd"), "--loglevel", "1", "--load",
-         str(ROOT / "peers" / "sl1_flat.ini"), "--export-sla", "-o", str(tmp_path / "ps.sl1"), str(stl)],
+         str(ROOT / "printapp" / "bench" / "peers" / "sl1_flat.ini"), "--export-sla", "-o", str(tmp_path / "ps.sl1"), str(stl)],
         check=True, capture_output=True, timeout=300,
     )  # fmt: skip
     with open(tmp_path / "ps.sl1", "rb") as stream:
@@ -179,6 +209,10 @@ def test_layers_match_prusaslicer(tmp_path, lshape):
     config_ours, ours = read_sl1(io.BytesIO(sl1_bytes(lshape)))
     assert len(ours) == len(theirs)
     assert set(config_ours) == set(config_ps)
+    for key in ("numFast", "numSlow", "numFade", "expTime", "expTimeFirst", "layerHeight"):
+        assert config_ours[key] == config_ps[key], key
+    assert float(config_ours["printTime"]) == pytest.approx(float(config_ps["printTime"]), abs=1e-3)
+    assert float(config_ours["usedMaterial"]) == pytest.approx(float(config_ps["usedMaterial"]), rel=1e-3)
     for a, b in zip(ours, theirs, strict=True):
         a, b = a.astype(int), b.astype(int)
         union = ((a > 127) | (b > 127)).sum()

@@ -9,7 +9,8 @@ import pytest
 from PIL import Image
 
 from printapp.errors import DesignError
-from printapp.topography import fill_masked, level, mask_outliers, read_heightmap, roughness
+from printapp.heightmap_readers import read_heightmap
+from printapp.topography import fill_masked, level, mask_outliers, roughness
 
 DATA = Path(__file__).parent.parent / "printapp" / "samples" / "topography"
 

@@ -78,11 +78,30 @@ def _version_callback(value: bool) -> None:
         raise typer.Exit(0)
 
 
+def _max_memory(text: str | None) -> str | None:
+    if text is not None:
+        from printapp.memory import parse_size, set_budget
+
+        try:
+            set_budget(parse_size(text))
+        except ValueError as exc:
+            raise typer.BadParameter(str(exc)) from None
+    return text
+
+
 @app.callback()
 def _root(
     version: Annotated[
         bool, typer.Option("--version", callback=_version_callback, is_eager=True, help="Show the version.")
     ] = False,
+    max_memory: Annotated[
+        str | None,
+        typer.Option(
+            "--max-memory",
+            callback=_max_memory,
+            help="Memory budget, e.g. 8G [half the available memory; env PRINTAPP_MAX_MEMORY].",
+        ),
+    ] = None,
 ) -> None:
     """Appearance printing: textures to watertight resin prints, verified by path tracing."""
 

@@ -142,6 +142,8 @@ def displace(
         repair=repair,
         refractive_index=refractive_index,
     )
+    if result.repair_note:
+        out.print(result.repair_note)
     if result.overlap_note:
         warn(result.overlap_note)
     if result.softened_vertices:

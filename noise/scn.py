@@ -30,6 +30,8 @@ How it is made fast (the value at each point is the formula's, to rounding):
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from noise._scn_kernels import (
@@ -43,6 +45,7 @@ from noise._scn_kernels import (
 from noise.hashing import seed_key
 
 CELL_SEED_MODES = ("hash", "frisvad")
+_MAX_OCTAVE_DOUBLINGS = 40  # finer octaves than 2^40 times the first lose every digit of the position
 
 
 # ---------------------------------------------------------------------------------------------
@@ -93,6 +96,12 @@ def _check_fbm(octaves: int, lacunarity: float, H: float) -> None:
         raise ValueError(f"lacunarity: expected a number > 1, got {lacunarity!r}")
     if not np.isfinite(H) or not 0.0 < H <= 1.0:
         raise ValueError(f"H: expected a number in (0, 1], got {H!r}")
+    if (octaves - 1) * math.log2(lacunarity) > _MAX_OCTAVE_DOUBLINGS:
+        doublings = (octaves - 1) * math.log2(lacunarity)
+        raise ValueError(
+            f"lacunarity: {lacunarity!r} over {octaves} octaves puts the finest at 2^{doublings:.0f} "
+            f"times the first; expected at most 2^{_MAX_OCTAVE_DOUBLINGS}"
+        )
 
 
 def _check_turbulence(low: int, high: int) -> None:
@@ -101,6 +110,8 @@ def _check_turbulence(low: int, high: int) -> None:
             raise ValueError(f"{name}: expected an integer >= 0, got {value!r}")
     if high < low:
         raise ValueError(f"high: expected an octave >= low ({low}), got {high!r}")
+    if high > _MAX_OCTAVE_DOUBLINGS:
+        raise ValueError(f"high: expected an octave up to {_MAX_OCTAVE_DOUBLINGS}, got {high!r}")
 
 
 def octaves_for_pitch(octaves: int, lacunarity: float, pitch: float, nyquist_samples: float = 2.0) -> int:

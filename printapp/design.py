@@ -88,7 +88,7 @@ class Texture(_Section):
 
     kind: Literal[TEXTURE_KIND_NAMES] = "fbm"  # type: ignore[valid-type]
     """One of :data:`printapp.texture_kinds.TEXTURE_KINDS`."""
-    feature_size_mm: Annotated[float, at.Gt(0.0), at.Le(1000.0)] = 2.0
+    feature_size_mm: Annotated[float, at.Ge(1e-3), at.Le(1000.0)] = 2.0
     """Size of one noise lattice cell (mm): the base octave's features are about this big."""
     seed: Annotated[int, at.Ge(0), at.Lt(2**63)] = 0
     impulses: Annotated[int, at.Ge(1), at.Le(256)] = 30
@@ -104,11 +104,11 @@ class Texture(_Section):
     """Direction of elongation in the xy plane, from +x towards +y."""
     field: str = "constant:0"
     """lic: the direction field, 'constant:ANGLE' (degrees), 'swirl' or 'image:FILE'."""
-    length_mm: Annotated[float, at.Gt(0.0), at.Le(1000.0)] = 2.0
+    length_mm: Annotated[float, at.Ge(1e-3), at.Le(1000.0)] = 2.0
     """lic: half-length of the streamlines the noise is averaged along (mm)."""
     vein_angle_rad: Annotated[float, at.Ge(-2 * math.pi), at.Le(2 * math.pi)] = 0.0
     """marble: direction the veins run along, from +x towards +y."""
-    vein_period_mm: Annotated[float, at.Gt(0.0), at.Le(10000.0)] = 5.0
+    vein_period_mm: Annotated[float, at.Ge(1e-3), at.Le(10000.0)] = 5.0
     """marble: distance between veins across their direction (mm); 1 / vein frequency."""
     turbulence_strength: Annotated[float, at.Ge(0.0), at.Le(1000.0)] = 5.0
     """marble: radians of the sine's phase per unit of turbulence (low..high octaves)."""

@@ -8,6 +8,19 @@ from pathlib import Path
 from printapp.errors import DesignError
 from printapp.mesh import SolidCheck
 
+_FLAGS = {
+    "relief.amplitude_mm": "--amplitude-mm",
+    "texture.feature_size_mm": "--feature-size-mm",
+    "texture.kind": "--texture",
+    "texture.seed": "--seed",
+    "texture.octaves": "--octaves",
+    "texture.field": "--field",
+    "texture.length_mm": "--length-mm",
+    "base.scale": "--scale",
+    "base.path": "MODEL",
+    "printer.name": "--printer",
+}
+
 
 @dataclass(frozen=True)
 class Displaced:
@@ -66,7 +79,16 @@ def displace_mesh_file(
         "relief": {"amplitude_mm": amplitude_mm},
         "printer": {"name": printer},
     }
-    design = design_from_dict(options, "options")
+    try:
+        design = design_from_dict(options, "options")
+    except DesignError as exc:
+        # Name the flag the user typed, not the design key it fills.
+        message = str(exc).removeprefix("options: ")
+        for key, flag in _FLAGS.items():
+            if message.startswith(f"{key}:"):
+                message = flag + message[len(key) :]
+                break
+        raise DesignError(message) from None
     base = load_closed_mesh(model, scale, repair=repair)
     repaired = base.metadata.get("repair")
     relief = build_relief(design, base=base)

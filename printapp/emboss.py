@@ -136,6 +136,11 @@ def emboss_heightmap(
             f"{profile.label}'s {profile.display_width_mm:g} x {profile.display_height_mm:g} mm display; "
             "expected a map that fits the printer"
         )
+    if target > min(width, depth) / 2.0:
+        raise DesignError(
+            f"--pitch-mm: {target:g} mm leaves fewer than 3 samples across the {width:.6g} x {depth:.6g} mm "
+            f"map; expected at most {min(width, depth) / 2.0:.6g} mm"
+        )
     nx, ny = grid_for_pitch(width, depth, target, adaptive=max_error_um is not None)
     finest = math.sqrt(width * depth / max(fits(EMBOSS_BYTES_PER_SAMPLE), 1.0))
     require(

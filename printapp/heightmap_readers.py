@@ -34,6 +34,8 @@ BYTES_PER_SAMPLE = 48
 """What a height map costs once read: the float64 map and the copies correction makes."""
 MAX_SIDE = 1 << 20
 """Largest sample count along one side any header may declare."""
+MAX_HEIGHT_MM = 1e6
+"""Largest height a map may hold (a kilometre): beyond it, squares and sums of heights overflow."""
 MAX_PITCH_M = 1.0
 """Largest sample spacing a measured file may declare (1 m: no instrument's pixel is larger)."""
 
@@ -137,8 +139,10 @@ def _member(path: Path, archive: zipfile.ZipFile, name: str, expected: int | Non
     try:
         with archive.open(info) as member:
             data = member.read(info.file_size + 1)
-    except (zipfile.BadZipFile, OSError, EOFError, ValueError, NotImplementedError) as exc:
-        raise DesignError(f"{path}: cannot unpack .x3p member {name!r} ({exc})") from None
+    except Exception as exc:  # zipfile passes on zlib, bz2, lzma and encryption errors of its own kinds
+        raise DesignError(
+            f"{path}: cannot unpack .x3p member {name!r} ({type(exc).__name__}: {exc})"
+        ) from None
     if len(data) != info.file_size:
         raise DesignError(f"{path}: .x3p member {name!r} does not unpack to its declared size")
     return data
@@ -239,8 +243,8 @@ def _read_npy(path: Path, pitch_mm: float | None) -> Topography:
             start = handle.tell()
             handle.seek(0, io.SEEK_END)
             payload = handle.tell() - start
-    except (ValueError, OSError, SyntaxError) as exc:
-        raise DesignError(f"{path}: not a readable .npy file ({exc})") from None
+    except Exception as exc:  # numpy's header parser raises ValueError, SyntaxError, TokenError...
+        raise DesignError(f"{path}: not a readable .npy file ({type(exc).__name__}: {exc})") from None
     if dtype.kind not in "fiub" or dtype.fields is not None or dtype.subdtype is not None:
         raise DesignError(f"{path}: the .npy holds {dtype} values; expected numbers (heights in mm)")
     if len(shape) != 2:

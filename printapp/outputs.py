@@ -189,10 +189,14 @@ class OutputFolder:
         return self._staging / name
 
     def write_bytes(self, name: str, data: bytes) -> None:
-        self.path(name).write_bytes(data)
+        """Stage ``name`` with ``data``; a full disk or a lost folder is one sentence, not a traceback."""
+        try:
+            self.path(name).write_bytes(data)
+        except OSError as exc:
+            raise DesignError(f"{self.given / name}: cannot write the file ({exc.strerror or exc})") from None
 
     def write_text(self, name: str, text: str) -> None:
-        self.path(name).write_text(text, encoding="utf-8")
+        self.write_bytes(name, text.encode("utf-8"))
 
     def commit(self) -> list[Path]:
         """Move the staged files into place (see the class); return their final paths."""

@@ -7,6 +7,7 @@ moved into place only at the end.
 
 from __future__ import annotations
 
+import io
 import json
 import math
 import platform
@@ -259,8 +260,9 @@ def run_design(
                 out.write_bytes("model.stl", stl_bytes(mesh.vertices, mesh.faces))
                 out.write_bytes("model.3mf", threemf_bytes(mesh.vertices, mesh.faces, design.name))
                 if slices is not None:
-                    with open(out.path("slices.sl1"), "wb") as stream:
-                        write_sl1(stream, slices, "slices")
+                    archive = io.BytesIO()
+                    write_sl1(archive, slices, "slices")
+                    out.write_bytes("slices.sl1", archive.getvalue())
         profile = design.printer.profile
         lo, hi = solid.bbox_min_mm, solid.bbox_max_mm
         grid = list(relief.patch.shape) if isinstance(design.base, TileBase) else None

@@ -114,7 +114,8 @@ class SchemaExplainer:
                 else:
                     parts.append(f"[{part}]")
             else:
-                parts.append(str(part))
+                text = str(part)
+                parts.append(text if len(text) <= 40 else text[:37] + "...")
         return ".".join(parts) or "(top level)"
 
     def alias_used(self, raw: Any, loc: tuple[Any, ...]) -> tuple[str, float, Any] | None:

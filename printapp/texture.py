@@ -2,14 +2,41 @@
 
 from __future__ import annotations
 
+import contextlib
 import math
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
 
 from noise.heightfield import HeightField
 from printapp.design import Design, Texture, TileBase
+from printapp.errors import DesignError
 from printapp.texture_kinds import stretch_to_noise_units, texture_kind, vein_sign
+
+# The design key behind each name the noise kernels complain about.
+_DESIGN_KEY_OF_KERNEL_NAME = {
+    "x": "texture.feature_size_mm",
+    "y": "texture.feature_size_mm",
+    "z": "texture.feature_size_mm",
+    "points": "texture.feature_size_mm",
+    "period": "texture.vein_period_mm",
+    "strength": "texture.turbulence_strength",
+    "sharpness": "texture.vein_sharpness",
+    "angle": "texture.vein_angle_deg",
+    "length": "texture.length_mm",
+}
+
+
+@contextlib.contextmanager
+def _kernel_errors_as_design_keys() -> Iterator[None]:
+    """A kernel's ValueError ("name: expected ...") as its design key: exit 2, not a traceback."""
+    try:
+        yield
+    except ValueError as exc:
+        name, _, rest = str(exc).partition(":")
+        key = _DESIGN_KEY_OF_KERNEL_NAME.get(name.strip(), f"texture.{name.strip()}")
+        raise DesignError(f"{key}:{rest}") from None
 
 
 def evaluate_texture(points_mm: np.ndarray, texture: Texture, pitch_mm: float | None = None) -> np.ndarray:
@@ -22,7 +49,8 @@ def evaluate_texture(points_mm: np.ndarray, texture: Texture, pitch_mm: float | 
     if kind.points is None:
         raise ValueError(f"{kind.name} textures are evaluated on grids or meshes, not at scattered points")
     pitch = None if pitch_mm is None else pitch_mm / texture.feature_size_mm
-    return kind.points(stretch_to_noise_units(points_mm, texture), texture, pitch)
+    with _kernel_errors_as_design_keys():
+        return kind.points(stretch_to_noise_units(points_mm, texture), texture, pitch)
 
 
 def normalise_peak_to_valley(values: np.ndarray, amplitude_mm: float) -> np.ndarray:
@@ -51,7 +79,8 @@ def evaluate_texture_grid(
     """
     kind = texture_kind(texture.kind)
     if kind.points is None or texture.stretch == 1.0 or texture.angle_rad == 0.0:
-        return kind.grid(x_mm, y_mm, texture, pitch_mm)
+        with _kernel_errors_as_design_keys():
+            return kind.grid(x_mm, y_mm, texture, pitch_mm)
     xx, yy = np.meshgrid(x_mm, y_mm)
     pts = np.column_stack([xx.ravel(), yy.ravel()])
     return evaluate_texture(pts, texture, pitch_mm=pitch_mm).reshape(len(y_mm), len(x_mm))
@@ -137,6 +166,9 @@ def write_texture_from_file(path: Path, out: Path, size: int, width_mm: float | 
 
 # Flags of ``printapp texture`` named by the kernels' ValueErrors ("name: expected ...").
 _FLAG_OF_KERNEL_NAME = {
+    "x": "--cells",
+    "y": "--cells",
+    "points": "--cells",
     "angle": "--vein-angle-deg",
     "period": "--vein-period",
     "strength": "--turbulence-strength",

@@ -101,8 +101,9 @@ def roughness(heights_mm: np.ndarray, pitch_x_mm: float, pitch_y_mm: float) -> R
         sa_um=float(np.mean(np.abs(v))) * 1000.0,
         sq_um=sq * 1000.0,
         sz_um=float(v.max() - v.min()) * 1000.0,
-        ssk=float(np.mean(v**3)) / sq**3 if sq > 0 else 0.0,
-        sku=float(np.mean(v**4)) / sq**4 if sq > 0 else 0.0,
+        # Moments of the normalised heights: the same values, no overflow of sq**4.
+        ssk=float(np.mean((v / sq) ** 3)) if sq > 0 else 0.0,
+        sku=float(np.mean((v / sq) ** 4)) if sq > 0 else 0.0,
         sdq=math.sqrt(float(np.mean(g2[gvalid]))),
         sdr_percent=float(np.mean(np.sqrt(1.0 + g2[gvalid])) - 1.0) * 100.0,
     )

@@ -17,6 +17,7 @@ from slicing.printed import pixel_centres_mm, printed_heights
 
 ROOT = Path(__file__).parent.parent
 SL1 = PRINTERS["prusa-sl1"]
+PEER_INI = ROOT / "printapp" / "bench" / "peers" / "sl1_flat.ini"
 
 
 def manifold_mesh(m: manifold3d.Manifold) -> trimesh.Trimesh:
@@ -201,7 +202,7 @@ def test_layers_match_prusaslicer(tmp_path, lshape):
     lshape.export(stl)
     subprocess.run(
         ["prusa-slicer", "--datadir", str(tmp_path / "dd"), "--loglevel", "1", "--load",
-         str(ROOT / "printapp" / "bench" / "peers" / "sl1_flat.ini"), "--export-sla", "-o", str(tmp_path / "ps.sl1"), str(stl)],
+         str(PEER_INI), "--export-sla", "-o", str(tmp_path / "ps.sl1"), str(stl)],
         check=True, capture_output=True, timeout=300,
     )  # fmt: skip
     with open(tmp_path / "ps.sl1", "rb") as stream:

@@ -438,4 +438,4 @@ def test_displace_writes_ply_and_refuses_open_meshes(tmp_path):
         "-o",
         out,
     )
-    assert bad.returncode == 2 and "relief.amplitude_mm" in bad.stderr
+    assert bad.returncode == 2 and "--amplitude-mm:" in bad.stderr  # the flag the user typed

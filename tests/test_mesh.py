@@ -195,3 +195,20 @@ def test_adaptive_top_of_a_plane_is_two_triangles():
     assert len(faces) == 2 + 3 * 4  # two triangles on top, four corner walls and floor fans
     with pytest.raises(ValueError, match="2\\^k \\+ 1"):
         adaptive_slab_arrays(np.zeros((30, 30)), 1.0, 1.0, 1.0, 0.0)
+
+
+def test_repair_closes_every_part_and_drops_none():
+    """The teapot is four open parts (body, spout, handle, lid); MeshFix alone keeps only the body."""
+    from printapp.mesh import repair_mesh
+
+    teapot = trimesh.load(DATA / "teapot.stl", process=True)
+    parts = teapot.split(only_watertight=False)
+    assert len(parts) == 4 and not any(p.is_watertight for p in parts)
+    solid, report = repair_mesh(teapot, "teapot")
+    assert (report.parts_in, report.closed, report.solids_out) == (4, 4, 1)
+    assert solid.is_watertight and solid.is_winding_consistent
+    # Every part's volume is there: more than the body alone, less than the sum (they overlap).
+    closed = [repair_mesh(p, "part")[0] for p in parts]
+    volumes = sorted(c.volume for c in closed)
+    assert volumes[-1] < solid.volume < sum(volumes)
+    assert solid.volume > volumes[-1] + 0.5 * sum(volumes[:-1])

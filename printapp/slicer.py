@@ -16,6 +16,30 @@ def _png_stack_file(name: str) -> bool:
     return name == "config.ini" or (len(name) == 9 and name.endswith(".png") and name[:5].isdigit())
 
 
+def _load_for_slicing(model: Path) -> tuple[Any, Any]:
+    """Vertices and faces of a closed mesh: binary STL straight into numpy, else through trimesh.
+
+    The fast path keeps trimesh (a second to import) out of the common case; a binary
+    STL whose vertices only nearly coincide, or any other format, takes the general path.
+    """
+    from printapp.inputs import regular_file
+    from printapp.stl import is_binary_stl, load_closed_stl
+
+    path = regular_file(model, "mesh")
+    with open(path, "rb") as handle:
+        head = handle.read(84)
+    if is_binary_stl(head, path.stat().st_size):
+        try:
+            return load_closed_stl(path)
+        except DesignError as exc:
+            if "open edges" not in str(exc):
+                raise
+    from printapp.mesh import load_closed_mesh
+
+    mesh = load_closed_mesh(model)
+    return mesh.vertices, mesh.faces
+
+
 @dataclass(frozen=True)
 class Sliced:
     """The layers of a model and what was written."""
@@ -47,7 +71,6 @@ def slice_model_file(
         For an unknown printer, a wrong suffix, a mesh that is not closed, or a model
         the printer cannot hold (layer height, size).
     """
-    from printapp.mesh import load_closed_mesh
     from printapp.outputs import OutputFolder, atomic_write_bytes
     from slicing import UnknownPrinterError, find_printer, slice_mesh, write_sl1
     from slicing.sl1 import encoded_layers
@@ -58,11 +81,9 @@ def slice_model_file(
         raise DesignError(f"--printer: {exc}") from None
     if out.suffix.lower() != ".sl1":
         raise DesignError(f"{out}: expected an output file ending in .sl1")
-    mesh = load_closed_mesh(model)
+    vertices, faces = _load_for_slicing(model)
     try:
-        slices = slice_mesh(
-            mesh.vertices, mesh.faces, profile, layer_height_mm=layer_height_mm, antialias=antialias
-        )
+        slices = slice_mesh(vertices, faces, profile, layer_height_mm=layer_height_mm, antialias=antialias)
     except ValueError as exc:
         raise DesignError(f"{model}: {exc}") from None
     if not any(area > 0.0 for area in slices.section_areas_mm2()):

@@ -43,9 +43,11 @@ llvm:
 $(BIN)/python:
 	@sh scripts/make-venv.sh "$(PYTHON)" "$(VENV)"
 
-$(STAMP): pyproject.toml | $(BIN)/python
+$(STAMP): pyproject.toml | $(BIN)/python llvm
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e ".[dev]"
+	@# Compile and cache every kernel now, so that the first demo runs as fast as the second.
+	$(BIN)/printapp warmup --quiet
 	@touch $(STAMP)
 
 clean:

@@ -58,7 +58,7 @@ def brdf_arrays(appearance) -> dict[str, np.ndarray]:
 
 
 @njit(cache=True)
-def _top_surface(vertices, faces, x0, y0, pitch, heights):
+def _top_surface(vertices, faces, x0, y0, pitch_x, pitch_y, heights):
     ny, nx = heights.shape
     for f in range(faces.shape[0]):
         ax, ay, az = vertices[faces[f, 0], 0], vertices[faces[f, 0], 1], vertices[faces[f, 0], 2]
@@ -67,14 +67,14 @@ def _top_surface(vertices, faces, x0, y0, pitch, heights):
         area = (bx - ax) * (cy - ay) - (cx - ax) * (by - ay)
         if area <= 0.0:
             continue  # facing down or vertical: never the top surface
-        c0 = max(int(math.ceil((min(ax, bx, cx) - x0) / pitch)), 0)
-        c1 = min(int(math.floor((max(ax, bx, cx) - x0) / pitch)), nx - 1)
-        r0 = max(int(math.ceil((min(ay, by, cy) - y0) / pitch)), 0)
-        r1 = min(int(math.floor((max(ay, by, cy) - y0) / pitch)), ny - 1)
+        c0 = max(int(math.ceil((min(ax, bx, cx) - x0) / pitch_x - 1e-9)), 0)
+        c1 = min(int(math.floor((max(ax, bx, cx) - x0) / pitch_x + 1e-9)), nx - 1)
+        r0 = max(int(math.ceil((min(ay, by, cy) - y0) / pitch_y - 1e-9)), 0)
+        r1 = min(int(math.floor((max(ay, by, cy) - y0) / pitch_y + 1e-9)), ny - 1)
         for r in range(r0, r1 + 1):
-            py = y0 + r * pitch
+            py = y0 + r * pitch_y
             for c in range(c0, c1 + 1):
-                px = x0 + c * pitch
+                px = x0 + c * pitch_x
                 w0 = ((bx - px) * (cy - py) - (cx - px) * (by - py)) / area
                 w1 = ((cx - px) * (ay - py) - (ax - px) * (cy - py)) / area
                 w2 = 1.0 - w0 - w1
@@ -123,7 +123,7 @@ def heightfield_from_mesh(path: Path, pitch_mm: float | None = None) -> HeightFi
     )
     nx, ny = int(nx_f), int(ny_f)
     heights = np.full((ny, nx), -np.inf)
-    _top_surface(vertices, faces, lo[0] + pitch_mm, lo[1] + pitch_mm, pitch_mm, heights)
+    _top_surface(vertices, faces, lo[0] + pitch_mm, lo[1] + pitch_mm, pitch_mm, pitch_mm, heights)
     if not np.all(np.isfinite(heights)):
         raise PrintappError(f"{path}: the top surface has holes; expected a closed tile seen from above")
     return HeightField(heights, pitch_mm, pitch_mm, lo[0] + pitch_mm, lo[1] + pitch_mm)

@@ -30,11 +30,8 @@ class Embossed:
     written: list[Path]
 
 
-def grid_for_pitch(width_mm: float, depth_mm: float, pitch_mm: float, adaptive: bool) -> tuple[int, int]:
+def grid_for_pitch(width_mm: float, depth_mm: float, pitch_mm: float) -> tuple[int, int]:
     """Samples (nx, ny) covering ``width_mm`` x ``depth_mm`` at about ``pitch_mm``.
-
-    The adaptive top needs a square grid of 2^k + 1 samples: the next size up. The size
-    is checked after that rounding, so that no request grows past the limit unseen.
 
     Raises
     ------
@@ -48,16 +45,9 @@ def grid_for_pitch(width_mm: float, depth_mm: float, pitch_mm: float, adaptive: 
             f"{MAX_SAMPLES:,} samples"
         )
     nx, ny = max(2, round(width_mm / pitch_mm) + 1), max(2, round(depth_mm / pitch_mm) + 1)
-    if adaptive:
-        side = 1
-        while side < max(nx, ny) - 1:
-            side *= 2
-        nx = ny = side + 1
     if nx * ny > MAX_SAMPLES:
         raise DesignError(
-            f"--pitch-mm: {pitch_mm:g} mm gives {nx} x {ny} samples"
-            + (" (the adaptive top rounds up to 2^k + 1)" if adaptive else "")
-            + f"; expected at most {MAX_SAMPLES:,}"
+            f"--pitch-mm: {pitch_mm:g} mm gives {nx} x {ny} samples; expected at most {MAX_SAMPLES:,}"
         )
     return nx, ny
 
@@ -105,8 +95,9 @@ def emboss_heightmap(
     :func:`printapp.slab.slab_arrays` and its invariant tests), so the costly solid
     checks of ``printapp design`` are not run.
     """
+    from printapp.adaptive_slab import adaptive_slab_arrays
     from printapp.exporters import check_mesh_output, write_mesh
-    from printapp.slab import adaptive_slab_arrays, slab_arrays
+    from printapp.slab import slab_arrays
     from printapp.topography import load_corrected
 
     try:
@@ -141,7 +132,7 @@ def emboss_heightmap(
             f"--pitch-mm: {target:g} mm leaves fewer than 3 samples across the {width:.6g} x {depth:.6g} mm "
             f"map; expected at most {min(width, depth) / 2.0:.6g} mm"
         )
-    nx, ny = grid_for_pitch(width, depth, target, adaptive=max_error_um is not None)
+    nx, ny = grid_for_pitch(width, depth, target)
     finest = math.sqrt(width * depth / max(fits(EMBOSS_BYTES_PER_SAMPLE), 1.0))
     require(
         BASE_BYTES + float(nx) * ny * EMBOSS_BYTES_PER_SAMPLE,

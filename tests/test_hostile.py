@@ -263,7 +263,7 @@ def test_endless_lic_is_refused(worker):
     refused(worker, ["texture", "lic", "--length", "1e9", "-o", "x.png"], None, "--length:", "fits")
 
 
-def test_the_adaptive_emboss_size_check_runs_after_rounding(worker):
+def test_an_adaptive_emboss_too_fine_for_the_budget_is_refused(worker):
     refused(
         worker,
         [

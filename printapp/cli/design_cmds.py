@@ -81,3 +81,12 @@ def design(
 ) -> None:
     """Build a design: model.stl, model.3mf, slices.sl1, preview.png, report.html, manifest.json and more."""
     _run(design_file, out_dir if out_dir is not None else Path(f"{design_file.stem}-out"), force, quiet)
+
+
+@app.command()
+def warmup(quiet: QuietOption = False) -> None:
+    """Compile every kernel a run uses, once (make does this after installing)."""
+    from printapp.warmup import warm_up
+
+    seconds = warm_up(quiet=quiet)
+    out.print(f"kernels compiled and cached in {sum(seconds.values()):.1f} s")

@@ -9,7 +9,7 @@ from typing import Annotated, Any
 import typer
 from rich.table import Table
 
-from printapp.cli.app import app, out
+from printapp.cli.app import QuietOption, app, out, working
 from printapp.errors import PrintappError
 
 
@@ -72,6 +72,7 @@ def material_command(
     plot: Annotated[
         Path | None, typer.Option("--plot", help="Write spectra and phase functions to this PNG.")
     ] = None,
+    quiet: QuietOption = False,
 ) -> None:
     """Optical properties of a material from its particles (Lorenz-Mie): sigma_s, sigma_a, g, in RGB too."""
     from printapp.material_report import (
@@ -86,7 +87,8 @@ def material_command(
     lam = parse_wavelengths(wavelengths_nm)
     if plot is not None and plot.suffix.lower() != ".png":
         raise PrintappError(f"{plot}: expected a plot file ending in .png")
-    report, optics = material_report(material, values, lam)
+    with working("Lorenz-Mie optics", quiet or as_json):
+        report, optics = material_report(material, values, lam)
     if plot is not None:
         atomic_write_bytes(plot, material_plot_png(report, optics))
     if as_json:

@@ -8,7 +8,7 @@ from typing import Annotated
 import typer
 from rich.table import Table
 
-from printapp.cli.app import app, out, warn
+from printapp.cli.app import QuietOption, app, out, warn, working
 from printapp.errors import PrintappError
 
 FlattenOption = Annotated[str | None, typer.Option(help="Level the base first: 'plane' or 'poly:K'.")]
@@ -31,21 +31,23 @@ def heightmap(
     flatten: FlattenOption = None,
     crop: Annotated[str | None, typer.Option(help="Keep columns C0:C1 and rows R0:R1 (samples).")] = None,
     json_out: Annotated[Path | None, typer.Option("--json", help="Write the parameters as JSON.")] = None,
+    quiet: QuietOption = False,
 ) -> None:
     """Correct a measured or image height map and print its ISO 25178 roughness parameters."""
     from printapp.topography import analyse_heightmap
 
-    summary = analyse_heightmap(
-        source,
-        out=out_path,
-        json_out=json_out,
-        width_mm=width_mm,
-        depth_mm=depth_mm,
-        pitch_mm=pitch_mm,
-        remove_outliers=remove_outliers,
-        flatten=flatten,
-        crop=crop,
-    )
+    with working("reading and correcting the height map", quiet):
+        summary = analyse_heightmap(
+            source,
+            out=out_path,
+            json_out=json_out,
+            width_mm=width_mm,
+            depth_mm=depth_mm,
+            pitch_mm=pitch_mm,
+            remove_outliers=remove_outliers,
+            flatten=flatten,
+            crop=crop,
+        )
     ny, nx = summary["samples"]
     px_um, py_um = summary["pitch_um"]
     title = (
@@ -76,6 +78,7 @@ def emboss(
         float | None,
         typer.Option(help="Adaptive top: fewest triangles keeping every sample within this (um)."),
     ] = None,
+    quiet: QuietOption = False,
 ) -> None:
     """Turn a height map into a closed, printable slab (the talk's Blender step, as one command).
 
@@ -85,17 +88,18 @@ def emboss(
     """
     from printapp.emboss import emboss_heightmap
 
-    slab = emboss_heightmap(
-        source,
-        out_path,
-        width_mm=width_mm,
-        depth_mm=depth_mm,
-        base_mm=base_mm,
-        pitch_mm=pitch_mm,
-        printer=printer,
-        flatten=flatten,
-        max_error_um=max_error_um,
-    )
+    with working("embossing the slab", quiet):
+        slab = emboss_heightmap(
+            source,
+            out_path,
+            width_mm=width_mm,
+            depth_mm=depth_mm,
+            base_mm=base_mm,
+            pitch_mm=pitch_mm,
+            printer=printer,
+            flatten=flatten,
+            max_error_um=max_error_um,
+        )
     if slab.worst_error_mm is not None:
         worst_um = slab.worst_error_mm * 1000
         out.print(f"adaptive top: every sample within {worst_um:.3g} um (bound {max_error_um:g} um)")
@@ -123,25 +127,27 @@ def displace(
     printer: Annotated[str, typer.Option(help="Printer whose pixel pitch bounds the detail.")] = "prusa-sl1",
     repair: Annotated[bool, typer.Option("--repair", help="Close open meshes with pymeshfix first.")] = False,
     refractive_index: Annotated[float, typer.Option(help=".obj: the resin's index for the .mtl.")] = 1.5,
+    quiet: QuietOption = False,
 ) -> None:
     """Displace a closed mesh along its angle-weighted normals by a texture; keep it a valid solid."""
     from printapp.displace import displace_mesh_file
 
-    result = displace_mesh_file(
-        model,
-        out_path,
-        amplitude_mm=amplitude_mm,
-        texture=texture,
-        feature_size_mm=feature_size_mm,
-        seed=seed,
-        octaves=octaves,
-        field=field,
-        length_mm=length_mm,
-        scale=scale,
-        printer=printer,
-        repair=repair,
-        refractive_index=refractive_index,
-    )
+    with working("displacing the mesh", quiet):
+        result = displace_mesh_file(
+            model,
+            out_path,
+            amplitude_mm=amplitude_mm,
+            texture=texture,
+            feature_size_mm=feature_size_mm,
+            seed=seed,
+            octaves=octaves,
+            field=field,
+            length_mm=length_mm,
+            scale=scale,
+            printer=printer,
+            repair=repair,
+            refractive_index=refractive_index,
+        )
     if result.repair_note:
         out.print(result.repair_note)
     if result.overlap_note:
@@ -166,11 +172,13 @@ def preview(
     ),
     width_px: Annotated[int, typer.Option(min=16, max=4096)] = 800,
     height_px: Annotated[int, typer.Option(min=16, max=4096)] = 600,
+    quiet: QuietOption = False,
 ) -> None:
     """A quick off-screen look at any mesh (pyvista, no path tracing)."""
     from printapp.viewer import quick_view
 
     if out_path.suffix.lower() != ".png":
         raise PrintappError(f"{out_path}: expected an image file ending in .png")
-    faces = quick_view(model, out_path, width_px, height_px)
+    with working("drawing the mesh (pyvista)", quiet):
+        faces = quick_view(model, out_path, width_px, height_px)
     out.print(f"{model.name}: {faces:,} triangles; wrote {out_path}")

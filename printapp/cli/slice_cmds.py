@@ -8,7 +8,7 @@ from typing import Annotated
 import typer
 from rich.table import Table
 
-from printapp.cli.app import app, out
+from printapp.cli.app import QuietOption, app, out, working
 
 
 @app.command()
@@ -39,18 +39,20 @@ def slice_command(
     png_dir: Annotated[
         Path | None, typer.Option(help="Also write the layers as a PNG stack (with config.ini) here.")
     ] = None,
+    quiet: QuietOption = False,
 ) -> None:
     """Slice a closed mesh into a PrusaSlicer-compatible .sl1 archive (and optionally a PNG stack)."""
     from printapp.slicer import slice_model_file
 
-    sliced = slice_model_file(
-        model,
-        out_path,
-        printer=printer,
-        layer_height_mm=layer_height_mm,
-        antialias=False if no_antialias else None,
-        png_dir=png_dir,
-    )
+    with working("slicing", quiet):
+        sliced = slice_model_file(
+            model,
+            out_path,
+            printer=printer,
+            layer_height_mm=layer_height_mm,
+            antialias=False if no_antialias else None,
+            png_dir=png_dir,
+        )
     slices = sliced.slices
     out.print(
         f"{model.name}: {slices.n_layers} layers of {slices.layer_height_mm:g} mm on {sliced.printer_label}, "

@@ -1,0 +1,153 @@
+"""``printapp warmup``: compile every numba kernel and Dr.Jit program a run uses, once, ahead of time.
+
+The kernels are cached (numba ``cache=True`` beside the package, or under
+``NUMBA_CACHE_DIR``; Dr.Jit in ``~/.drjit``), so the first real run then costs what
+every later one does. ``make`` runs this after installing. Each step calls the same
+public functions a run calls, with the same array types, on inputs a few samples big.
+"""
+
+from __future__ import annotations
+
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from printapp.progress import StageTimer
+
+
+def _noise() -> None:
+    import noise
+
+    pts = np.random.default_rng(0).uniform(0.0, 4.0, (64, 3))
+    axis = np.linspace(0.0, 3.0, 8)
+    for cell_seed in noise.CELL_SEED_MODES:
+        noise.sparse_convolution(pts, cell_seed=cell_seed)
+        noise.sparse_convolution_grid(axis, axis, cell_seed=cell_seed)
+    noise.fbm(pts, octaves=3, min_pitch=0.1)
+    noise.fbm_grid(axis, axis, octaves=3, min_pitch=0.1)
+    noise.turbulence(pts, low=0, high=2, min_pitch=0.1)
+    noise.turbulence_grid(axis, axis, low=0, high=2, min_pitch=0.1)
+    noise.veins(pts, angle=0.3, period=2.0, strength=3.0, sharpness=2.0, low=0, high=2)
+    noise.veins_grid(axis, axis, angle=0.3, period=2.0, strength=3.0, sharpness=2.0, low=0, high=2)
+
+
+def _lic() -> None:
+    import trimesh
+
+    from noise.lic import lic2d
+    from noise.surface import field_rotation, lic_surface
+
+    u = np.ones((16, 16))
+    lic2d(u, np.zeros_like(u), np.random.default_rng(0).random((16, 16)), length=3.0)
+    sphere = trimesh.creation.icosphere(1)
+    vertices, faces = np.asarray(sphere.vertices), np.asarray(sphere.faces)
+    field = field_rotation(vertices, faces, (0.0, 0.0, 1.0), (0.0, 0.0, 0.0))
+    lic_surface(vertices, faces, field, length=0.3, step=0.1, noise_scale=0.2)
+
+
+def _design(design_dict: dict, brdf: bool) -> None:
+    from printapp.design import design_from_dict
+    from printapp.mesh import check_solid
+    from printapp.relief import appearance_field, build_relief
+    from printapp.rendering import predict_for_design
+
+    design = design_from_dict(design_dict, "warm-up")
+    relief = build_relief(design)
+    check_solid(relief.mesh)
+    field, _ = appearance_field(design, relief)
+    if brdf:  # the compact model's fit is SciPy, seconds that a warm-up need not pay twice
+        predict_for_design(design, field)
+
+
+def _tile() -> None:
+    small = {"base": {"width_mm": 3.0, "depth_mm": 3.0}, "brdf": {"rays": 2000}}
+    _design(small, brdf=True)
+    _design({**small, "texture": {"kind": "lic", "field": "swirl", "feature_size_mm": 0.5}}, brdf=False)
+    _design({**small, "texture": {"kind": "marble", "feature_size_mm": 1.0}}, brdf=False)
+
+
+def _mesh() -> None:
+    import trimesh
+
+    from printapp.design import design_from_dict
+    from printapp.exporters import stl_bytes
+    from printapp.relief import build_relief
+    from slicing import find_printer, slice_mesh, write_sl1
+
+    box = trimesh.creation.box((4.0, 4.0, 4.0))
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "box.stl"
+        path.write_bytes(stl_bytes(box.vertices, box.faces))
+        for kind in ("fbm", "lic"):
+            texture = {"kind": kind, "feature_size_mm": 1.0, "field": "axis:0,0,1"}
+            design = design_from_dict(
+                {"base": {"path": str(path)}, "texture": texture, "relief": {"amplitude_mm": 0.1}}
+            )
+            relief = build_relief(design)
+        import io
+
+        slices = slice_mesh(relief.mesh.vertices, relief.mesh.faces, find_printer("prusa-sl1"))
+        write_sl1(io.BytesIO(), slices, "warm")
+        slices.max_winding()
+
+
+def _emboss_and_brdf() -> None:
+    from noise.heightfield import HeightField
+    from printapp.adaptive_slab import adaptive_slab_arrays
+    from printapp.brdf import heightfield_from_mesh
+    from printapp.exporters import stl_bytes
+    from printapp.slab import slab_arrays
+
+    heights = np.random.default_rng(1).random((17, 17)) * 0.1
+    vertices, faces = slab_arrays(HeightField(heights, 0.1, 0.1), 1.0)
+    adaptive_slab_arrays(heights, 1.6, 1.6, 1.0, 0.01)
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "slab.stl"
+        path.write_bytes(stl_bytes(vertices, faces))
+        heightfield_from_mesh(path)
+
+
+def _materials() -> None:
+    from printapp.materials import appearance
+
+    appearance("white-resin")
+
+
+def _render() -> None:
+    import trimesh
+
+    from render.mitsuba_adapter import choose_variant, render_resin_mesh
+
+    choose_variant()
+    box = trimesh.creation.box((2.0, 2.0, 1.0))
+    render_resin_mesh(
+        np.asarray(box.vertices),
+        np.asarray(box.faces),
+        body_albedo=(0.8, 0.5, 0.2),
+        refractive_index=1.5,
+        width_px=16,
+        height_px=12,
+        spp=1,
+    )
+
+
+STEPS: tuple[tuple[str, str, Callable[[], None]], ...] = (
+    ("noise", "noise kernels", _noise),
+    ("lic", "line integral convolution", _lic),
+    ("tile", "tile relief, slicing, BRDF", _tile),
+    ("mesh", "mesh relief and slicing", _mesh),
+    ("emboss", "slabs and mesh tops", _emboss_and_brdf),
+    ("materials", "Lorenz-Mie", _materials),
+    ("render", "Mitsuba programs", _render),
+)
+
+
+def warm_up(quiet: bool = False) -> dict[str, float]:
+    """Run every step once; return the seconds each took (large the first time, small after)."""
+    with StageTimer(quiet=quiet) as timer:
+        for name, label, step in STEPS:
+            with timer.stage(name, label):
+                step()
+    return dict(timer.seconds)

@@ -401,7 +401,7 @@ def test_translucent_example_renders_a_medium_end_to_end(tmp_path):
 
     text = (ROOT / "examples" / "translucent_tile.toml").read_text()
     small = text.replace("width_px = 320", "width_px = 40").replace("height_px = 240", "height_px = 30")
-    small = small.replace("spp = 256", "spp = 2")
+    small = small.replace("spp = 256", "spp = 2\nnoise = 1.0")
     design_file = tmp_path / "translucent.toml"
     design_file.write_text(small)
     out = tmp_path / "out"

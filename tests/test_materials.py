@@ -428,7 +428,11 @@ def test_design_material_validation_and_dense_resin_uses_the_albedo(tmp_path):
         design_from_dict({"material": {"name": "resin"}}, "d.toml")
     with pytest.raises(DesignError, match="d.toml: material: white-resin: unknown parameter 'tio2'"):
         design_from_dict({"material": {"name": "white-resin", "parameters": {"tio2": 0.1}}}, "d.toml")
-    design = design_from_dict({"material": {"name": "white-resin"}})
+    # at 480 x 360 (at the default 1024 x 768 a pixel is 0.042 mm and the white resin's light
+    # wanders farther than that: it is rendered as a medium there)
+    design = design_from_dict(
+        {"material": {"name": "white-resin"}, "render": {"width_px": 480, "height_px": 360}}
+    )
     derived, chosen = derive_design_material(design)
     assert derived.material.refractive_index == pytest.approx(chosen.appearance.refractive_index)
     assert derived.material.body_albedo == chosen.appearance.body_albedo

@@ -296,11 +296,24 @@ class Brdf(_Section):
 
 
 class Render(_Section):
-    """The verification preview."""
+    """The verification preview.
 
-    width_px: Annotated[int, at.Ge(16), at.Le(4096)] = 480
-    height_px: Annotated[int, at.Ge(16), at.Le(4096)] = 360
-    spp: Annotated[int, at.Ge(1), at.Le(65536)] = 32
+    It is rendered in passes until the relative noise of the object's pixels (estimated from
+    two independent halves, :mod:`render.convergence`) is at most ``noise``, or until
+    ``max_spp`` samples per pixel or ``time_cap_s`` seconds are spent (then verification
+    fails and says so). ``spp`` is the first passes' samples (both halves together).
+    ``denoise = "auto"`` writes a preview denoised by Open Image Denoise where that is
+    trusted (the verdict still reads the raw noise); ``"off"`` never denoises.
+    """
+
+    width_px: Annotated[int, at.Ge(16), at.Le(4096)] = 1024
+    height_px: Annotated[int, at.Ge(16), at.Le(4096)] = 768
+    spp: Annotated[int, at.Ge(1), at.Le(65536)] = 8
+    noise: Annotated[float, at.Gt(0.0), at.Le(1.0)] = 0.02
+    """Relative noise a converged preview may have (RMS standard error over the object's mean)."""
+    max_spp: Annotated[int, at.Ge(1), at.Le(1 << 20)] = 4096
+    time_cap_s: Annotated[float, at.Gt(0.0), at.Le(86400.0)] = 60.0
+    denoise: Literal["auto", "off"] = "auto"
     elevation_rad: Annotated[float, at.Gt(0.0), at.Lt(math.pi / 2)] = math.radians(40.0)
     azimuth_rad: Annotated[float, at.Ge(-2 * math.pi), at.Le(2 * math.pi)] = math.radians(-60.0)
     distance_scale: Annotated[float, at.Ge(0.2), at.Le(1000.0)] = 1.0
@@ -310,6 +323,12 @@ class Render(_Section):
     mode: Literal["auto", "model", "table", "geometry"] = "auto"
     """How the relief is rendered: its fitted BRDF ('model'), its traced BRDF table ('table') or
     its geometry; 'auto' takes the cheapest that shows what the camera can resolve."""
+
+    @model_validator(mode="after")
+    def _budget_holds_first_passes(self) -> Render:
+        if self.max_spp < self.spp:
+            raise ValueError(f"'max_spp' ({self.max_spp}) must be at least 'spp' ({self.spp})")
+        return self
 
 
 Vector3 = tuple[float, float, float]

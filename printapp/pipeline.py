@@ -64,8 +64,13 @@ def verify(
     appearance: SlopeRoughness,
     image: np.ndarray | None,
     brdf_metrics: dict[str, Any] | None = None,
+    preview_noise: tuple[bool, str] | None = None,
 ) -> tuple[list[str], list[str]]:
-    """Printability and appearance checks: (passed descriptions, failure reasons)."""
+    """Printability and appearance checks: (passed descriptions, failure reasons).
+
+    ``preview_noise`` is :func:`printapp.rendering.noise_summary` of the preview: whether its
+    raw (un-denoised) noise met its threshold, and the sentence that says so or why not.
+    """
     passed: list[str] = []
     failed: list[str] = []
     profile = design.printer.profile
@@ -146,6 +151,9 @@ def verify(
             f"preview render is brighter than its brightest light ({float(image.max()):.3g} > "
             f"{brightest:g}): the material returns more light than it receives",
         )
+    if preview_noise is not None:
+        ok, sentence = preview_noise
+        check(ok, sentence, sentence)
     return passed, failed
 
 
@@ -189,7 +197,13 @@ def run_design(
     ``force``; everything else is written so that the user can see why.
     """
 
-    from printapp.rendering import light_sweep, predict_for_design, render_preview
+    from printapp.rendering import (
+        light_sweep,
+        noise_record,
+        noise_summary,
+        predict_for_design,
+        render_preview,
+    )
     from printapp.report import report_html, sweep_settings
     from render.mitsuba_adapter import choose_variant, to_srgb8
 
@@ -245,7 +259,14 @@ def run_design(
                     design, relief, mesh, predicted, brdf_field, medium=medium, **sweep_settings(design)
                 )
         with timer.stage("verify", "verification"):
-            passed, failed = verify(design, solid, appearance, image, predicted.metrics)
+            passed, failed = verify(
+                design,
+                solid,
+                appearance,
+                image,
+                predicted.metrics,
+                preview_noise=None if preview is None else noise_summary(preview),
+            )
             winding = slices.max_winding() if slices is not None else None
             if winding is not None:
                 overlap = winding_verdict(winding)
@@ -340,8 +361,10 @@ def run_design(
                 "relief_feature_pixels": round(preview.pixels_per_feature, 4)
                 if preview is not None
                 else None,
-                "spp": design.render.spp,
+                "spp": None if preview is None or preview.convergence is None else preview.convergence.spp,
+                "first_spp": design.render.spp,
                 "size_px": [design.render.width_px, design.render.height_px],
+                "noise": None if preview is None else noise_record(preview),
                 "mean_linear_rgb": [round(float(v), 6) for v in image.reshape(-1, 3).mean(axis=0)],
             },
             "verification": {

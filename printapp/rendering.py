@@ -18,6 +18,7 @@ from printapp.mesh import slab_from_heightfield
 if TYPE_CHECKING:
     from printapp.relief import Relief
     from render.appearance import Appearance
+    from render.convergence import Converged
     from render.mitsuba_adapter import StudioLight
     from render.mitsuba_bsdfs import TableSurface
     from render.translucency import MediumRGB
@@ -33,6 +34,66 @@ class Preview:
     pixels_per_feature: float
     variant: str
     warning: str | None
+    convergence: Converged | None = None
+    """How the preview's noise was brought down (None for fixed-sample renders)."""
+    denoiser: str = ""
+    """The denoiser used or available, or why there is none."""
+    object_pixels: int = 0
+
+
+def noise_record(preview: Preview) -> dict[str, Any] | None:
+    """The manifest's account of a preview's noise: raw figure, goal, samples, denoiser, stop."""
+    c = preview.convergence
+    if c is None:
+        return None
+    return {
+        "estimator": "RMS over the object's pixels of the standard error of the pixel's luminance "
+        "(from two independent halves), relative to the object's mean luminance",
+        "raw_relative_noise": round(c.noise, 5),
+        "target": c.target,
+        "converged": c.converged,
+        "stopped_by": c.stopped,
+        "spp": c.spp,
+        "passes": c.passes,
+        "budget_spp": c.budget_spp,
+        "budget_set_by_time_cap": c.timing_dependent,
+        "seconds": round(c.seconds, 3),
+        "object_pixels": preview.object_pixels,
+        "denoised": c.denoised,
+        "denoised_error": None if c.denoised_error is None else round(c.denoised_error, 5),
+        "denoiser": preview.denoiser,
+        "history": [[spp, round(noise, 5)] for spp, noise in c.history],
+    }
+
+
+def noise_summary(preview: Preview) -> tuple[bool, str]:
+    """Whether the preview converged (by its raw noise), and one sentence: how far, how, why it stopped."""
+    c = preview.convergence
+    if c is None:
+        return True, "preview rendered with a fixed number of samples"
+    how = f"{c.spp} samples per pixel in {c.seconds:.1f} s"
+    denoised = ""
+    if c.denoised:
+        denoised = (
+            f"; the preview written is denoised ({c.denoiser}), its error against a converged render "
+            f"{c.denoised_error:.1%} (estimated from the independent halves)"
+        )
+    if c.converged:
+        return True, (
+            f"preview converged: raw noise {c.noise:.1%} of the object's mean luminance "
+            f"(at most {c.target:.0%}) after {how}{denoised}"
+        )
+    stop = {
+        "time cap": f"the time cap ({c.time_cap_s:g} s)",
+        "sample budget": f"the sample budget ({c.budget_spp} samples per pixel)",
+    }.get(c.stopped, c.stopped)
+    line = (
+        f"preview noise {c.noise:.1%} (raw) is above its threshold {c.target:.0%}: rendering stopped at "
+        f"{stop} after {how}{denoised}"
+    )
+    if c.timing_dependent:
+        line += "; the number of samples depended on this machine's speed"
+    return False, line
 
 
 def predict_for_design(design: Design, field: HeightField) -> Appearance:
@@ -80,6 +141,8 @@ def render_preview(
     medium: MediumRGB | None = None,
     light: StudioLight | None = None,
     tables: dict[str, TableSurface] | None = None,
+    fixed_spp: int | None = None,
+    mode_source: str = "in the design",
 ) -> Preview:
     """Path-trace the design with the representation its camera needs (``design.render.mode``).
 
@@ -89,8 +152,13 @@ def render_preview(
     smooth base), and previews on Mitsuba's scalar variant (the BRDF plugins are Python
     code, which only the vectorised variants run at speed). ``tables`` keeps a traced
     table between calls (a light sweep renders the same surface several times).
+
+    The preview is rendered in passes until its noise meets ``design.render.noise``
+    (:func:`render.convergence.converge`); with ``fixed_spp`` it takes that many samples
+    (in two halves, whose noise is still measured), as the light sweep's frames do.
+    ``mode_source`` says where a forced ``mode`` came from, for the reason shown.
     """
-    from render.mitsuba_adapter import PREVIEW_FOV_DEG, Framing, choose_variant, render_resin_mesh
+    from render.mitsuba_adapter import PREVIEW_FOV_DEG, Framing, choose_variant, resin_scene_dict
     from render.representation import Choice, choose_representation, compact_surface, table_surface
 
     variant = choose_variant()
@@ -106,7 +174,7 @@ def render_preview(
     elif base is None:
         choice = Choice("geometry", "booleans leave no smooth base shape for a BRDF", pixels)
     elif r.mode != "auto":
-        choice = Choice(r.mode, "asked for in the design", pixels)
+        choice = Choice(r.mode, f"asked for {mode_source}", pixels)
     elif variant.variant == "scalar_rgb":
         choice = Choice("geometry", "Mitsuba's scalar variant runs the BRDF plugins too slowly", pixels)
     else:
@@ -136,15 +204,13 @@ def render_preview(
         target = base
         if tables is not None:
             tables["table"] = surface
-    image = render_resin_mesh(
+    scene_dict, _ = resin_scene_dict(
         np.asarray(target.vertices),
         np.asarray(target.faces),
         body_albedo=rgb,
         refractive_index=design.material.refractive_index,
         width_px=r.width_px,
         height_px=r.height_px,
-        spp=r.spp,
-        seed=r.seed,
         elevation_rad=r.elevation_rad,
         azimuth_rad=r.azimuth_rad,
         fov_deg=PREVIEW_FOV_DEG,
@@ -154,7 +220,54 @@ def render_preview(
         distance_scale=r.distance_scale,
         frame_vertices=np.asarray(mesh.vertices),
     )
-    return Preview(image, choice.mode, choice.reason, pixels, variant.variant, variant.warning)
+    converged, denoiser_name, object_pixels = _converge(scene_dict, design, fixed_spp)
+    return Preview(
+        converged.image,
+        choice.mode,
+        choice.reason,
+        pixels,
+        variant.variant,
+        variant.warning,
+        converged,
+        denoiser_name,
+        object_pixels,
+    )
+
+
+def _converge(
+    scene_dict: dict[str, Any], design: Design, fixed_spp: int | None
+) -> tuple[Converged, str, int]:
+    """Render ``scene_dict`` to the design's noise goal (or ``fixed_spp`` samples): the result, the
+    denoiser's name (or why none), and the number of object pixels."""
+    from printapp.denoiser import open_image_denoise
+    from render.convergence import ConvergenceSettings, converge
+    from render.progressive import SampleRenderer
+
+    r = design.render
+    renderer = SampleRenderer(scene_dict, r.width_px, r.height_px)
+    guides = renderer.aovs(4, r.seed)
+    mask = guides["coverage"] >= 0.5
+    denoiser, denoiser_name = (None, 'off (design: [render] denoise = "off")')
+    if r.denoise == "auto":
+        denoiser, denoiser_name = open_image_denoise()
+    first = max(1, (fixed_spp or r.spp) // 2)
+    first = 1 << (first.bit_length() - 1)
+    if fixed_spp is not None:
+        settings = ConvergenceSettings(target=r.noise, first_spp=first, max_spp=2 * first, time_cap_s=1e9)
+    else:
+        settings = ConvergenceSettings(
+            target=r.noise, first_spp=first, max_spp=max(r.max_spp, 2 * first), time_cap_s=r.time_cap_s
+        )
+    result = converge(
+        renderer.render,
+        mask,
+        seed=r.seed,
+        settings=settings,
+        denoiser=denoiser,
+        guides=(guides["albedo"], guides["normal"]),
+        denoiser_name=denoiser_name,
+    )
+    return result, denoiser_name, int(mask.sum())
 
 
 def sweep_azimuths_rad(camera_azimuth_rad: float, frames: int) -> list[float]:
@@ -201,29 +314,57 @@ def light_sweep(
         light = replace(StudioLight(), azimuth_rad=azimuth, highlight_radiance=0.0)
         strip.append(
             render_preview(
-                small, relief, mesh, predicted, appearance_field, medium=medium, light=light, tables=tables
+                small,
+                relief,
+                mesh,
+                predicted,
+                appearance_field,
+                medium=medium,
+                light=light,
+                tables=tables,
+                fixed_spp=spp,
             ).image
         )
     return np.concatenate(strip, axis=1)
+
+
+def parse_size(text: str) -> tuple[int, int]:
+    """``"1024x768"`` to ``(1024, 768)``; else a :class:`printapp.errors.PrintappError` naming ``--size``."""
+    from printapp.errors import PrintappError
+
+    parts = text.lower().replace("×", "x").split("x")
+    try:
+        width, height = (int(p) for p in parts)
+    except ValueError:
+        raise PrintappError(
+            f"--size: expected WIDTHxHEIGHT in pixels, such as 1024x768, got {text!r}"
+        ) from None
+    if not (16 <= width <= 4096 and 16 <= height <= 4096):
+        raise PrintappError(f"--size: each side must be 16 to 4096 pixels, got {text!r}")
+    return width, height
 
 
 def render_design_file(
     design_file: Path,
     out: Path,
     *,
-    mode: str = "auto",
+    mode: str | None = None,
     spp: int | None = None,
     distance_scale: float | None = None,
+    size: tuple[int, int] | None = None,
     sweep: Path | None = None,
 ) -> tuple[Design, Preview, list[Path]]:
     """``printapp render``: path-trace a design's predicted appearance, and optionally a light sweep.
 
-    ``mode``, ``spp`` and ``distance_scale`` override the design's ``[render]`` table
-    (None keeps the design's). Both images are written, or neither.
+    ``mode``, ``spp``, ``distance_scale`` and ``size`` override the design's ``[render]`` table
+    (None keeps the design's); the reason shown for the representation says which one asked
+    for it. A named translucent material is rendered as ``printapp design`` renders it. Both
+    images are written, or neither.
     """
     from printapp.design import load_design
     from printapp.errors import PrintappError
     from printapp.exporters import png_bytes
+    from printapp.material_design import derive_design_material, render_choice
     from printapp.mesh import combine_solids
     from printapp.outputs import atomic_write_files
     from printapp.relief import appearance_field, build_relief
@@ -233,18 +374,28 @@ def render_design_file(
         if path is not None and path.suffix.lower() != ".png":
             raise PrintappError(f"{path}: expected an image file ending in .png")
     design = load_design(design_file)
-    updates: dict[str, Any] = {"mode": mode}
+    source = "in the design" if "mode" in design.render.model_fields_set else "by default"
+    updates: dict[str, Any] = {}
+    if mode is not None:
+        updates["mode"] = mode
+        source = "with --mode"
     if spp is not None:
         updates["spp"] = spp
+        updates["max_spp"] = max(spp, design.render.max_spp)
     if distance_scale is not None:
         updates["distance_scale"] = distance_scale
+    if size is not None:
+        updates["width_px"], updates["height_px"] = size
     design = design.model_copy(update={"render": design.render.model_copy(update=updates)})
+    design, named = derive_design_material(design)
     relief = build_relief(design)
     mesh = combine_solids(relief.mesh, design.combine) if design.combine else relief.mesh
+    medium = render_choice(design, named, np.asarray(mesh.vertices))[0] if named is not None else None
     field, _ = appearance_field(design, relief)
     predicted = predict_for_design(design, field)
-    preview = render_preview(design, relief, mesh, predicted, field)
+    preview = render_preview(design, relief, mesh, predicted, field, medium=medium, mode_source=source)
     outputs = [(out, png_bytes(to_srgb8(preview.image)))]
     if sweep is not None:
-        outputs.append((sweep, png_bytes(to_srgb8(light_sweep(design, relief, mesh, predicted, field)))))
+        strip = light_sweep(design, relief, mesh, predicted, field, medium=medium)
+        outputs.append((sweep, png_bytes(to_srgb8(strip))))
     return design, preview, atomic_write_files(outputs)

@@ -101,6 +101,32 @@ def sweep_settings(design: Design) -> dict[str, int]:
     return {"frames": SWEEP_FRAMES, "width_px": width, "height_px": height, "spp": spp}
 
 
+def _noise_rows(noise: Mapping[str, Any] | None) -> list[tuple[str, Any]]:
+    """The preview's noise as the report shows it: raw figure, goal, denoiser, why it stopped."""
+    if not noise:
+        return []
+    rows: list[tuple[str, Any]] = [
+        (
+            "noise (raw, un-denoised)",
+            f"{noise['raw_relative_noise']:.2%} of the object's mean luminance "
+            f"(at most {noise['target']:.0%}; {noise['object_pixels']:,} object pixels)",
+        ),
+        ("converged", "yes" if noise["converged"] else f"no: stopped by the {noise['stopped_by']}"),
+    ]
+    if noise["denoised"]:
+        rows.append(
+            (
+                "denoised",
+                f"yes, the image shown is denoised by {noise['denoiser']}; its error against a converged "
+                f"render, estimated from the independent halves: {noise['denoised_error']:.2%} (the "
+                "verdict reads the raw noise)",
+            )
+        )
+    else:
+        rows.append(("denoised", f"no (denoiser: {noise['denoiser']})"))
+    return rows
+
+
 def _lookup(manifest: Mapping[str, Any], path: tuple[str, ...]) -> Any:
     node: Any = manifest
     for key in path:
@@ -302,6 +328,7 @@ def report_html(
                     ("Mitsuba variant", r.get("variant")),
                     ("size", " x ".join(str(v) for v in r.get("size_px", [])) + " px"),
                     ("samples per pixel", r.get("spp")),
+                    *_noise_rows(r.get("noise")),
                 ]
             )
         )

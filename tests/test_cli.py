@@ -79,9 +79,9 @@ def test_demo_model_is_a_watertight_slab_of_the_right_volume(demo_runs):
 def test_demo_preview_is_an_image_of_something(demo_runs):
     base, _, _ = demo_runs
     image = np.asarray(Image.open(base / "a" / "preview.png").convert("RGB"), dtype=float)
-    assert image.shape == (360, 480, 3)
+    assert image.shape == (768, 1024, 3)
     assert image.std() > 10  # not blank
-    centre = image[140:220, 180:300].mean(axis=(0, 1))
+    centre = image[300:470, 380:640].mean(axis=(0, 1))
     assert centre[0] > centre[2] + 30  # the orange tile fills the middle of the frame
 
 
@@ -160,6 +160,7 @@ anisotropy = [5.0, 10.0]
 width_px = 64
 height_px = 48
 spp = 4
+noise = 1.0  # tiny test renders: any noise passes (tests/test_convergence.py checks it)
 """
     result, out = run_bad(tmp_path, text)
     assert result.returncode == 3
@@ -189,6 +190,7 @@ amplitude_um = 150
 width_px = 96
 height_px = 64
 spp = 4
+noise = 1.0  # tiny test renders: any noise passes (tests/test_convergence.py checks it)
 """
     )
     result = printapp("design", design, "-o", tmp_path / "out", "--quiet")

@@ -401,7 +401,7 @@ def test_translucent_example_renders_a_medium_end_to_end(tmp_path):
 
     text = (ROOT / "examples" / "translucent_tile.toml").read_text()
     small = text.replace("width_px = 320", "width_px = 40").replace("height_px = 240", "height_px = 30")
-    small = small.replace("spp = 256", "spp = 2")
+    small = small.replace("spp = 256", "spp = 2\nnoise = 1.0")
     design_file = tmp_path / "translucent.toml"
     design_file.write_text(small)
     out = tmp_path / "out"
@@ -428,7 +428,11 @@ def test_design_material_validation_and_dense_resin_uses_the_albedo(tmp_path):
         design_from_dict({"material": {"name": "resin"}}, "d.toml")
     with pytest.raises(DesignError, match="d.toml: material: white-resin: unknown parameter 'tio2'"):
         design_from_dict({"material": {"name": "white-resin", "parameters": {"tio2": 0.1}}}, "d.toml")
-    design = design_from_dict({"material": {"name": "white-resin"}})
+    # at 480 x 360 (at the default 1024 x 768 a pixel is 0.042 mm and the white resin's light
+    # wanders farther than that: it is rendered as a medium there)
+    design = design_from_dict(
+        {"material": {"name": "white-resin"}, "render": {"width_px": 480, "height_px": 360}}
+    )
     derived, chosen = derive_design_material(design)
     assert derived.material.refractive_index == pytest.approx(chosen.appearance.refractive_index)
     assert derived.material.body_albedo == chosen.appearance.body_albedo

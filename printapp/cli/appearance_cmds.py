@@ -145,10 +145,16 @@ def render(
     out_path: Annotated[Path, typer.Option("--out", "-o", help="The image to write (.png).")] = Path(
         "render.png"
     ),
-    spp: Annotated[int | None, typer.Option(min=1, max=65536, help="Samples per pixel [design's].")] = None,
+    spp: Annotated[
+        int | None, typer.Option(min=1, max=65536, help="Samples per pixel of the first passes [design's].")
+    ] = None,
     mode: Annotated[
-        RenderMode, typer.Option(help="Relief as its fitted BRDF, its traced table, or geometry.")
-    ] = RenderMode.auto,
+        RenderMode | None,
+        typer.Option(help="Relief as its fitted BRDF, its traced table, or geometry [design's, else auto]."),
+    ] = None,
+    size: Annotated[
+        str | None, typer.Option(help="Image size WIDTHxHEIGHT in pixels [design's, else 1024x768].")
+    ] = None,
     distance_scale: Annotated[
         float | None, typer.Option(min=0.2, max=1000.0, help="Camera distance, 1 = framing [design's].")
     ] = None,
@@ -157,14 +163,26 @@ def render(
     ] = None,
     quiet: QuietOption = False,
 ) -> None:
-    """Path-trace a design's predicted appearance, with the representation the camera needs."""
-    from printapp.rendering import render_design_file
+    """Path-trace a design's predicted appearance, with the representation the camera needs.
+
+    Passes are added until the noise of the object's pixels meets the design's [render] noise
+    (2 % by default), or its sample budget or time cap is spent.
+    """
+    from printapp.rendering import noise_summary, parse_size, render_design_file
 
     with working("path tracing (Mitsuba 3)", quiet):
         design, preview, written = render_design_file(
-            design_file, out_path, mode=mode.value, spp=spp, distance_scale=distance_scale, sweep=sweep
+            design_file,
+            out_path,
+            mode=None if mode is None else mode.value,
+            spp=spp,
+            distance_scale=distance_scale,
+            size=None if size is None else parse_size(size),
+            sweep=sweep,
         )
     if preview.warning:
         warn(preview.warning)
     out.print(f"{design.name}: rendered as {preview.mode} ({preview.reason}) on {preview.variant}")
+    converged, line = noise_summary(preview)
+    (out.print if converged else warn)(line)
     wrote(written)

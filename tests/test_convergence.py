@@ -1,0 +1,239 @@
+"""The preview's noise: the estimator against images of known variance, the progressive loop, the
+denoiser's cross-validated error, and renders whose noise is known from a reference."""
+
+import math
+
+import numpy as np
+import pytest
+import trimesh
+
+from render.convergence import (
+    ConvergenceSettings,
+    converge,
+    denoised_error,
+    luminance,
+    object_crop,
+    relative_noise,
+)
+
+# --- The estimator on synthetic images of known variance ---------------------------------------
+
+
+def _scene(shape=(120, 160), seed=0):
+    """A smooth 'converged image' with an object mask, and a per-pixel noise level that varies."""
+    rng = np.random.default_rng(seed)
+    h, w = shape
+    y, x = np.mgrid[0:h, 0:w]
+    clean = 0.2 + 0.15 * np.sin(x / 9.0) * np.cos(y / 13.0)
+    mask = ((x - w / 2) ** 2 / (0.4 * w) ** 2 + (y - h / 2) ** 2 / (0.4 * h) ** 2) < 1.0
+    sigma = 0.05 + 0.1 * (x / w)  # heteroscedastic: the estimator must average variances, not sigmas
+    return rng, clean, mask, sigma
+
+
+def _true_relative_noise(clean, sigma, mask, halves_spp=1):
+    # The preview is the mean of two halves, each with variance sigma^2 / halves_spp.
+    return math.sqrt(float(np.mean(sigma[mask] ** 2 / (2 * halves_spp)))) / float(np.mean(clean[mask]))
+
+
+@pytest.mark.parametrize("kind", ["gauss", "gamma"])
+def test_relative_noise_matches_the_known_variance(kind):
+    rng, clean, mask, sigma = _scene()
+    truth = _true_relative_noise(clean, sigma, mask)
+    estimates = []
+    for _ in range(20):
+        if kind == "gauss":
+            a = clean + sigma * rng.standard_normal(clean.shape)
+            b = clean + sigma * rng.standard_normal(clean.shape)
+        else:  # skewed gamma noise of the same mean and variance
+            a = rng.gamma(clean**2 / sigma**2, sigma**2 / clean)
+            b = rng.gamma(clean**2 / sigma**2, sigma**2 / clean)
+        estimates.append(relative_noise(a, b, mask))
+    estimates = np.array(estimates)
+    # unbiased to within its own scatter (about 0.5 % of the figure with 11,000 object pixels)
+    assert np.mean(estimates) == pytest.approx(truth, rel=0.01)
+    assert np.std(estimates) < 0.02 * truth
+
+
+def test_relative_noise_of_rgb_reads_luminance_and_the_mask_only():
+    rng, clean, mask, sigma = _scene()
+    rgb = np.repeat(clean[..., None], 3, axis=-1)
+    a = rgb + (sigma * rng.standard_normal(clean.shape))[..., None]
+    b = rgb + (sigma * rng.standard_normal(clean.shape))[..., None]
+    a[~mask] = 50.0  # a wild background does not count
+    assert relative_noise(a, b, mask) == pytest.approx(_true_relative_noise(clean, sigma, mask), rel=0.05)
+    assert relative_noise(a, a, mask) == 0.0
+    assert relative_noise(a, b, np.zeros_like(mask)) == 0.0
+    assert relative_noise(np.zeros_like(a), np.zeros_like(b), mask) == math.inf
+
+
+def test_denoised_error_estimates_a_blurs_true_error_without_a_reference():
+    from scipy.ndimage import uniform_filter
+
+    rng, clean, mask, sigma = _scene(seed=3)
+    a = clean + sigma * rng.standard_normal(clean.shape)
+    b = clean + sigma * rng.standard_normal(clean.shape)
+    mean = float(np.mean(clean[mask]))
+    for size in (3, 5):
+        da, db = uniform_filter(a, size), uniform_filter(b, size)
+        truth = math.sqrt(float(np.mean((0.5 * (da + db) - clean)[mask] ** 2))) / mean
+        one_half = math.sqrt(float(np.mean((da - clean)[mask] ** 2))) / mean
+        estimate = denoised_error(da, db, a, b, mask)
+        # each denoised half's own error, so an upper bound on the mean's (Minkowski)
+        assert estimate == pytest.approx(one_half, rel=0.2) and estimate > truth
+    # Its resolution: the estimate subtracts the halves' variance, known to about sqrt(2 / N)
+    # of itself over N object pixels, so errors far below (2 / N)^(1/4) of a half's noise
+    # (here 0.12) are lost in that scatter; the estimate then reads low, never negative.
+    heavy = denoised_error(uniform_filter(a, 9), uniform_filter(b, 9), a, b, mask)
+    assert 0.0 <= heavy < 0.12 * math.sqrt(float(np.mean((a - b)[mask] ** 2)) / 2.0) / mean
+
+
+def test_object_crop():
+    mask = np.zeros((50, 60), dtype=bool)
+    mask[10:20, 30:40] = True
+    assert object_crop(mask, margin=5) == (slice(5, 25), slice(25, 45))
+    assert object_crop(np.zeros((4, 4), dtype=bool)) == (slice(0, 0), slice(0, 0))
+
+
+# --- The progressive loop on a synthetic renderer ------------------------------------------------
+
+
+class Synthetic:
+    """A 'renderer' whose per-pixel noise is known: the mean of spp samples of N(clean, sigma^2)."""
+
+    def __init__(self, seed_offset=0):
+        _, self.clean, self.mask, self.sigma = _scene()
+        self.calls = []
+        self.offset = seed_offset
+
+    def __call__(self, spp, seed, pixels):
+        self.calls.append((spp, seed, None if pixels is None else len(pixels)))
+        rng = np.random.default_rng(seed + self.offset)
+        if pixels is None:
+            mean, sd = self.clean, self.sigma
+        else:
+            mean, sd = self.clean.ravel()[pixels], self.sigma.ravel()[pixels]
+        out = mean + sd / math.sqrt(spp) * rng.standard_normal(mean.shape)
+        return np.repeat(out[..., None], 3, axis=-1)
+
+
+def test_converge_stops_at_the_target_deterministically():
+    first, second = Synthetic(), Synthetic()
+    settings = ConvergenceSettings(target=0.005, first_spp=2, max_spp=1 << 14, time_cap_s=1e9)
+    one = converge(first, first.mask, seed=7, settings=settings)
+    two = converge(second, second.mask, seed=7, settings=settings)
+    assert one.converged and one.stopped == "noise target" and one.noise <= 0.005
+    assert np.array_equal(one.image, two.image) and first.calls == second.calls
+    # only the object's pixels (and a border) got more than the first round's samples
+    assert all(n is None or n < first.mask.size for _, _, n in first.calls)
+    assert first.calls[0][2] is None and first.calls[-1][2] is not None
+    # the figure is the true noise of the image delivered
+    true = _true_relative_noise(first.clean, first.sigma, first.mask, halves_spp=one.spp // 2)
+    assert one.noise == pytest.approx(true, rel=0.1)
+    error = (
+        math.sqrt(np.mean((luminance(one.image) - first.clean)[first.mask] ** 2))
+        / first.clean[first.mask].mean()
+    )
+    assert error == pytest.approx(true, rel=0.1)
+
+
+def test_an_undersampled_preview_does_not_converge_and_says_why():
+    r = Synthetic()
+    capped = converge(r, r.mask, seed=1, settings=ConvergenceSettings(target=0.005, first_spp=2, max_spp=8))
+    assert not capped.converged and capped.stopped == "sample budget" and capped.spp == 8
+    assert capped.noise > 0.005 and not capped.timing_dependent
+    ticks = iter(range(1000))  # a clock that runs 1 s per call: the cap binds at once
+    timed = converge(
+        r,
+        r.mask,
+        seed=1,
+        settings=ConvergenceSettings(target=0.005, first_spp=2, max_spp=1 << 14, time_cap_s=3.0),
+        clock=lambda: float(next(ticks)),
+    )
+    assert not timed.converged and timed.stopped == "time cap" and timed.timing_dependent
+
+
+def test_denoiser_is_used_only_where_it_helps_and_never_decides():
+    r = Synthetic()
+    blur = lambda colour, albedo, normal: np.asarray(colour, dtype=np.float64)  # noqa: E731 (identity)
+    guides = (np.ones(r.clean.shape + (3,)), np.zeros(r.clean.shape + (3,)))
+    settings = ConvergenceSettings(target=0.005, first_spp=2, max_spp=8)
+    out = converge(
+        r, r.mask, seed=1, settings=settings, denoiser=blur, guides=guides, denoiser_name="identity"
+    )
+    # an identity 'denoiser' returns each half as it is: its estimated error is a half's noise,
+    # sqrt(2) times the preview's, so the raw image is delivered; the verdict is the raw noise's
+    assert not out.denoised and out.denoised_error == pytest.approx(math.sqrt(2) * out.noise, rel=0.1)
+    assert not out.converged
+
+
+# --- Real renders ---------------------------------------------------------------------------------
+
+
+def _box_scene(width=64, height=48):
+    from render.mitsuba_adapter import choose_variant, resin_scene_dict
+
+    choose_variant()
+    m = trimesh.creation.box(extents=(10, 10, 2))
+    scene, _ = resin_scene_dict(
+        np.asarray(m.vertices),
+        np.asarray(m.faces),
+        body_albedo=(0.8, 0.5, 0.2),
+        refractive_index=1.5,
+        width_px=width,
+        height_px=height,
+    )
+    return scene
+
+
+def test_render_halves_are_independent_and_their_noise_is_the_true_noise():
+    """The estimate of two 16-sample halves against the error of their mean to a 2,048-sample reference."""
+    from render.progressive import SampleRenderer
+
+    renderer = SampleRenderer(_box_scene(), 64, 48)
+    mask = renderer.aovs(4, 0)["coverage"] >= 0.5
+    passes = [renderer.render(256, 1000 + k) for k in range(8)]
+    reference = np.mean(passes, axis=0)
+    ref_noise = relative_noise(np.mean(passes[0::2], axis=0), np.mean(passes[1::2], axis=0), mask)
+    estimates, errors = [], []
+    mean = luminance(reference)[mask].mean()
+    for k in range(6):
+        a, b = renderer.render(16, 2 * k + 1), renderer.render(16, 2 * k + 2)
+        estimates.append(relative_noise(a, b, mask))
+        mse = np.mean((luminance(0.5 * (a + b)) - luminance(reference))[mask] ** 2) / mean**2
+        errors.append(math.sqrt(max(mse - ref_noise**2, 0.0)))
+    # independent halves: the estimate is the error against the reference (not less, as
+    # correlated halves would make it), within the scatter of six trials
+    assert np.mean(estimates) == pytest.approx(np.mean(errors), rel=0.15)
+    # and the same seed gives the same image, byte for byte
+    assert np.array_equal(renderer.render(16, 3), renderer.render(16, 3))
+
+
+def test_denoised_preview_agrees_with_the_converged_reference():
+    """Open Image Denoise on a smooth scene: the denoised preview is within 2 % of the converged one."""
+    from printapp.denoiser import open_image_denoise
+    from render.progressive import SampleRenderer
+
+    denoiser, name = open_image_denoise()
+    if denoiser is None:
+        pytest.skip(name)
+    renderer = SampleRenderer(_box_scene(128, 96), 128, 96)
+    guides = renderer.aovs(16, 0)
+    mask = guides["coverage"] >= 0.5
+    reference = np.mean([renderer.render(256, 500 + k) for k in range(4)], axis=0)
+    out = converge(
+        renderer.render,
+        mask,
+        seed=5,
+        settings=ConvergenceSettings(target=0.005, first_spp=4, max_spp=64),
+        denoiser=denoiser,
+        guides=(guides["albedo"], guides["normal"]),
+        denoiser_name=name,
+    )
+    assert out.denoised and not out.converged  # the raw noise still decides
+    lum_ref = luminance(reference)[mask]
+    error = math.sqrt(np.mean((luminance(out.image)[mask] - lum_ref) ** 2)) / lum_ref.mean()
+    assert error < 0.02 and error < out.noise
+    assert out.denoised_error == pytest.approx(error, abs=0.01)
+    # deterministic: the same input, the same denoised image
+    again = denoiser(out.raw, guides["albedo"], guides["normal"])
+    assert np.array_equal(again, denoiser(out.raw, guides["albedo"], guides["normal"]))

@@ -7,13 +7,17 @@ VENV ?= .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.printapp-installed
 
-.PHONY: demo test lint format bench llvm clean
+.PHONY: demo test test-fast lint format bench llvm chromium clean
 
 demo: $(STAMP) llvm
 	$(BIN)/printapp demo
 
-test: $(STAMP) llvm
+test: $(STAMP) llvm chromium
 	$(BIN)/python -m pytest -q
+
+# The edit-test loop: everything but the end-to-end and heavy tests (marked slow).
+test-fast: $(STAMP) llvm
+	$(BIN)/python -m pytest -q -m "not slow"
 
 lint: $(STAMP)
 	$(BIN)/ruff check .
@@ -39,6 +43,9 @@ bench: $(STAMP) llvm
 
 llvm:
 	@sh scripts/install-llvm.sh
+
+chromium:
+	@sh scripts/install-chromium.sh
 
 $(BIN)/python:
 	@sh scripts/make-venv.sh "$(PYTHON)" "$(VENV)"

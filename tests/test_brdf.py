@@ -258,6 +258,7 @@ def test_ray_budget_for_a_lobe_error_follows_one_over_sqrt_rays():
     assert rays_for_lobe_error(errors, np.array([1000] * 4), 0.01, max_rays=500).tolist() == [1000] * 4
 
 
+@pytest.mark.slow
 def test_each_direction_is_traced_to_the_lobe_error_asked_for():
     h = gaussian_surface(0.25, n=128, corr_px=2.0) * 0.05
     plain = predict_appearance(HeightField(h, 0.05, 0.05), rays=4000, body_albedo=0.3, periodic=True)

@@ -11,6 +11,8 @@ from typer.testing import CliRunner
 from printapp.cli import app
 from render.fresnel import fresnel_dielectric
 
+pytestmark = pytest.mark.slow  # end to end: `make test-fast` leaves these out
+
 runner = CliRunner()
 
 

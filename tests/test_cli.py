@@ -13,6 +13,8 @@ import pytest
 import trimesh
 from PIL import Image
 
+pytestmark = pytest.mark.slow  # end to end: `make test-fast` leaves these out
+
 ROOT = Path(__file__).parent.parent
 SAMPLES = ROOT / "printapp" / "samples"
 

@@ -23,6 +23,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+pytestmark = pytest.mark.slow  # end to end: `make test-fast` leaves these out
+
 ROOT = Path(__file__).parent.parent
 SAMPLES = ROOT / "printapp" / "samples"
 SMALL_RENDER = (

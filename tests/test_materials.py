@@ -396,6 +396,7 @@ def test_material_command_bad_input_exits_2(tmp_path, args, message):
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.slow
 def test_translucent_example_renders_a_medium_end_to_end(tmp_path):
     from printapp.design import load_design, resolved_toml
 

@@ -9,6 +9,8 @@ from typer.testing import CliRunner
 
 from printapp.cli import app
 
+pytestmark = pytest.mark.slow  # end to end: `make test-fast` leaves these out
+
 runner = CliRunner()
 
 SMALL = """

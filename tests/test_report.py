@@ -18,6 +18,8 @@ from printapp.cli import app
 from printapp.design import load_design
 from printapp.report import metric_rows, report_html, sweep_settings
 
+pytestmark = pytest.mark.slow  # end to end: `make test-fast` leaves these out
+
 runner = CliRunner()
 
 NAME = "<script>alert('x')</script> & tile"

@@ -196,6 +196,7 @@ def test_as_printed_tile_recovers_the_design():
     assert len(x) == slices.cols
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(shutil.which("prusa-slicer") is None, reason="PrusaSlicer is not installed")
 def test_layers_match_prusaslicer(tmp_path, lshape):
     stl = tmp_path / "lshape.stl"

@@ -137,6 +137,7 @@ def test_angle_map_through_a_uv_layout():
         assert alignment.min() > 0.999
 
 
+@pytest.mark.slow
 def test_image_field_on_a_mesh_design(tmp_path):
     from PIL import Image
 

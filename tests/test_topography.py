@@ -72,6 +72,7 @@ def test_level_removes_planes_and_polynomials():
     assert np.abs(level(quadratic + bump, 2) - bump).max() < 0.3 * np.abs(bump).max()
 
 
+@pytest.mark.slow
 def test_outliers_are_masked_and_filled():
     z = np.fromfunction(lambda r, c: 0.01 * r + 0.02 * c, (30, 30))
     z[10, 12] = 50.0

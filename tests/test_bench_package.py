@@ -142,7 +142,7 @@ def test_every_stage_has_a_module_named_after_it():
     names = [key.value for key in stages.keys]
     assert names == [
         *("noise", "frames", "lic", "slice", "mesh", "brdf"),
-        *("pitch", "adaptive", "mie", "pipeline", "fit", "render"),
+        *("pitch", "adaptive", "mie", "pipeline", "fit", "render", "commands"),
     ]
     for name in names:
         module = ast.parse((BENCH / f"{name}.py").read_text())

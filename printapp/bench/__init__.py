@@ -50,6 +50,7 @@ STAGES: dict[str, Callable[[int], StageResult]] = {
     "pipeline": _lazy("pipeline"),
     "fit": _lazy("fit"),  # photos to noise parameters, beside the random-phase texture
     "render": _lazy("render"),  # model, table and geometry against distance
+    "commands": _lazy("commands"),  # whole commands beside PrusaSlicer and Blender
 }
 
 

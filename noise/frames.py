@@ -10,9 +10,15 @@ Two bases (both right-handed: b1 x b2 = n):
   (near the threshold, in float32 from about 1 + n.z < 1e-3), and the basis loses its
   orthonormality; Duff et al. choose the sign s = copysign(1, n.z) so that the
   denominator ``s + n.z`` never cancels, which is exact to rounding everywhere.
+
+On meshes: angle-weighted vertex normals, per-vertex and per-face frames, and frames
+that follow a direction field (:func:`surface_frames`), isotropic around the field's
+singular points (:func:`singular_faces`), for the noise of :mod:`noise.framed`.
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 from numba import njit, prange
@@ -163,3 +169,139 @@ def face_frames(
     n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     b1, b2 = onb(n, method, normalize=True)
     return n / np.linalg.norm(n, axis=1, keepdims=True), b1, b2
+
+
+# ---------------------------------------------------------------------------------------------
+# Tangent frames that follow a direction field on a mesh
+
+
+@dataclass(frozen=True)
+class SurfaceFrames:
+    """A tangent frame (t, b, n) per vertex, and how far each vertex is from the field's singular points."""
+
+    tangent: np.ndarray
+    """(n, 3) unit t: the field projected into the tangent plane; the ONB's first vector where singular."""
+    bitangent: np.ndarray
+    """(n, 3) unit b = n x t; the ONB's second vector where singular."""
+    normal: np.ndarray
+    """(n, 3) unit angle-weighted normals."""
+    blend: np.ndarray
+    """(n,) in [0, 1]: 0 at singular vertices, a smoothstep of the distance to the nearest one, 1 beyond
+    the radius (everywhere, when there are none)."""
+    singular: np.ndarray
+    """(n,) bool: the field vanishes at the vertex, or turns about a triangle the vertex is a corner of."""
+
+    @property
+    def singular_count(self) -> int:
+        return int(np.count_nonzero(self.singular))
+
+
+def singular_faces(vertices: np.ndarray, faces: np.ndarray, field: np.ndarray) -> np.ndarray:
+    """Triangles around which a line field turns: its index there is not zero.
+
+    Each corner's field vector is projected into the triangle's plane and measured as an
+    angle; the angle steps along the three edges, each taken modulo pi into
+    (-pi/2, pi/2] (a line field has no sign), add up to a multiple of pi: zero for a
+    regular triangle, +-pi for an index +-1/2 singularity, +-2pi for +-1 (the vortex
+    at a pole of circles about an axis, the two zeros every tangent field on a sphere
+    has, by the hairy-ball theorem). Triangles with a corner where the field vanishes
+    are not counted here (that vertex is singular itself).
+
+    Returns
+    -------
+    (m,) bool array
+    """
+    verts = np.asarray(vertices, dtype=np.float64)
+    tris = np.asarray(faces, dtype=np.int64)
+    vec = np.asarray(field, dtype=np.float64)
+    tri = verts[tris]
+    e1 = tri[:, 1] - tri[:, 0]
+    nf = np.cross(e1, tri[:, 2] - tri[:, 0])
+    nf /= np.maximum(np.linalg.norm(nf, axis=1, keepdims=True), 1e-300)
+    e1 /= np.maximum(np.linalg.norm(e1, axis=1, keepdims=True), 1e-300)
+    e2 = np.cross(nf, e1)
+    angles = np.empty((len(tris), 3))
+    live = np.ones(len(tris), dtype=bool)
+    for c in range(3):
+        t = vec[tris[:, c]]
+        u, v = np.einsum("ij,ij->i", t, e1), np.einsum("ij,ij->i", t, e2)
+        live &= np.hypot(u, v) > 1e-9 * np.maximum(np.linalg.norm(t, axis=1), 1e-300)
+        angles[:, c] = np.arctan2(v, u)
+    steps = np.diff(np.concatenate([angles, angles[:, :1]], axis=1), axis=1)
+    steps = np.mod(steps + np.pi / 2, np.pi) - np.pi / 2
+    return live & (np.abs(steps.sum(axis=1)) > np.pi / 2)
+
+
+def surface_frames(
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    field: np.ndarray | None,
+    *,
+    blend_radius: float,
+    method: str = "duff",
+) -> SurfaceFrames:
+    """Per-vertex tangent frames that follow a direction field, isotropic around its singular points.
+
+    The normal n is the angle-weighted pseudo-normal; the tangent t is the field
+    projected into the tangent plane and normalised; the bitangent is b = n x t. Where
+    the field vanishes or turns about a triangle (see :func:`singular_faces`), and
+    everywhere when ``field`` is None, (t, b) is the orthonormal basis of n
+    (:func:`onb`: Duff et al. 2017 by default, Frisvad 2012 selectable) and ``blend``
+    is 0: the noise built on these frames is isotropic there, and the stretch returns
+    over ``blend_radius`` (a smoothstep of the straight-line distance to the nearest
+    singular vertex, a lower bound of the distance along the surface).
+
+    Parameters
+    ----------
+    vertices : (n, 3) float array
+        Positions (mm, or any unit; ``blend_radius`` is in the same unit).
+    faces : (m, 3) int array
+        Triangles, counter-clockwise seen from outside.
+    field : (n, 3) float array or None
+        A direction per vertex, of any length (zero where it vanishes); only its
+        direction up to sign matters.
+    blend_radius : float
+        Distance from a singular vertex at which the full stretch returns, > 0.
+    method : {"duff", "frisvad"}
+        The orthonormal basis where the field gives no direction.
+
+    Returns
+    -------
+    SurfaceFrames
+    """
+    if method not in ONB_METHODS:
+        raise ValueError(f"method: expected one of {ONB_METHODS}, got {method!r}")
+    if not (np.isfinite(blend_radius) and blend_radius > 0):
+        raise ValueError(f"blend_radius: expected a positive distance, got {blend_radius!r}")
+    verts = np.asarray(vertices, dtype=np.float64)
+    tris = np.asarray(faces, dtype=np.int64)
+    n = angle_weighted_normals(verts, tris)
+    unused = np.linalg.norm(n, axis=1) < 0.5
+    n[unused] = (0.0, 0.0, 1.0)  # vertices of no face: any frame will do
+    b1, b2 = onb(n, method, normalize=True)
+    if field is None:
+        t = b1.copy()
+        singular = np.ones(len(verts), dtype=bool)
+    else:
+        vec = np.asarray(field, dtype=np.float64)
+        if vec.shape != verts.shape or not np.all(np.isfinite(vec)):
+            raise ValueError(f"field: expected finite vectors shaped like the vertices {verts.shape}")
+        t = vec - np.einsum("ij,ij->i", vec, n)[:, None] * n
+        length = np.linalg.norm(t, axis=1)
+        singular = length <= 1e-9 * np.maximum(np.linalg.norm(vec, axis=1), 1e-300)
+        singular |= unused
+        singular[tris[singular_faces(verts, tris, t)].ravel()] = True
+        t = np.where(singular[:, None], b1, t / np.maximum(length, 1e-300)[:, None])
+    if singular.all():
+        blend = np.zeros(len(verts))
+    elif not singular.any():
+        blend = np.ones(len(verts))
+    else:
+        from scipy.spatial import cKDTree
+
+        # Bounded: beyond the radius the distance does not matter (inf), and far points cost nothing.
+        distance, _ = cKDTree(verts[singular]).query(verts, distance_upper_bound=blend_radius, workers=-1)
+        x = np.clip(distance / blend_radius, 0.0, 1.0)
+        blend = x * x * (3.0 - 2.0 * x)
+    b = np.where(singular[:, None], b2, np.cross(n, t))
+    return SurfaceFrames(t, b, n, blend, singular)

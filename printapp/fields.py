@@ -168,7 +168,9 @@ def surface_lic_values(mesh, texture, step_mm: float, base=None) -> np.ndarray:
 
     vertices = np.asarray(mesh.vertices)
     faces = np.asarray(mesh.faces)
-    field = field_on_mesh(texture.field, mesh, base)
+    from printapp.texture_kinds import lic_field
+
+    field = field_on_mesh(lic_field(texture), mesh, base)
     return lic_surface(
         vertices,
         faces,

@@ -3,13 +3,15 @@
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from noise.heightfield import HeightField
 from printapp.design import Design, Texture, TileBase
-from printapp.texture_kinds import stretch_to_noise_units, texture_kind, vein_sign
+from printapp.texture_kinds import stretch_field, stretch_to_noise_units, texture_kind, vein_sign
 
 
 def evaluate_texture(points_mm: np.ndarray, texture: Texture, pitch_mm: float | None = None) -> np.ndarray:
@@ -23,6 +25,77 @@ def evaluate_texture(points_mm: np.ndarray, texture: Texture, pitch_mm: float | 
         raise ValueError(f"{kind.name} textures are evaluated on grids or meshes, not at scattered points")
     pitch = None if pitch_mm is None else pitch_mm / texture.feature_size_mm
     return kind.points(stretch_to_noise_units(points_mm, texture), texture, pitch)
+
+
+@dataclass(frozen=True)
+class FrameSummary:
+    """The tangent frames a stretched noise followed on a mesh, for the manifest and the CLI."""
+
+    field: str
+    """The field spec the stretch followed (the design's, or ``constant:ANGLE`` from angle_deg)."""
+    onb: str
+    """The orthonormal basis used where the field gives no direction."""
+    blend_radius_mm: float
+    """Radius over which the stretch fades to isotropic around singular vertices (mm)."""
+    singular_vertices: int
+    """Vertices where the field vanishes or turns about a triangle: isotropic noise there."""
+    blended_vertices: int
+    """Vertices within the blend radius of a singular one (the singular ones included)."""
+    vertices: int
+
+    def as_dict(self) -> dict[str, Any]:
+        return {
+            "field": self.field,
+            "onb": self.onb,
+            "blend_radius_mm": round(self.blend_radius_mm, 6),
+            "singular_vertices": self.singular_vertices,
+            "blended_vertices": self.blended_vertices,
+            "vertices": self.vertices,
+        }
+
+
+def evaluate_texture_on_mesh(
+    mesh, texture: Texture, pitch_mm: float, base=None
+) -> tuple[np.ndarray, FrameSummary | None]:
+    """Raw texture values at the vertices of ``mesh`` (a trimesh.Trimesh, mm), and the frames followed.
+
+    A stretched scn, fbm or turbulence follows the surface: each vertex's frame is its
+    normal and the field (:func:`printapp.texture_kinds.stretch_field`) projected into
+    its tangent plane, isotropic around the field's singular points
+    (:func:`noise.frames.surface_frames`), and the noise is stretched along the frame's
+    tangent (:mod:`noise.framed`). Without a stretch, and for marble, the noise is
+    evaluated at the vertices as on a tile (no frame: returns None for it).
+    """
+    kind = texture_kind(texture.kind)
+    vertices = np.asarray(mesh.vertices)
+    if kind.framed is None or texture.stretch == 1.0:
+        return evaluate_texture(vertices, texture, pitch_mm=pitch_mm), None
+    from noise.frames import surface_frames
+    from printapp.fields import field_on_mesh
+
+    spec = stretch_field(texture)
+    radius = texture.frame_blend_mm
+    if radius is None:
+        radius = 0.5 * texture.stretch * texture.feature_size_mm
+    frames = surface_frames(
+        vertices,
+        np.asarray(mesh.faces),
+        field_on_mesh(spec, mesh, base),
+        blend_radius=radius,
+        method=texture.onb,
+    )
+    values = kind.framed(
+        vertices / texture.feature_size_mm, frames, texture, pitch_mm / texture.feature_size_mm
+    )
+    summary = FrameSummary(
+        field=spec,
+        onb=texture.onb,
+        blend_radius_mm=float(radius),
+        singular_vertices=frames.singular_count,
+        blended_vertices=int(np.count_nonzero(frames.blend < 1.0)),
+        vertices=len(vertices),
+    )
+    return values, summary
 
 
 def normalise_peak_to_valley(values: np.ndarray, amplitude_mm: float) -> np.ndarray:

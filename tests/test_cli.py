@@ -281,10 +281,18 @@ def test_every_example_builds_and_passes_verification(tmp_path, example):
     from printapp.design import load_design
     from printapp.pipeline import run_design
 
-    outcome = run_design(load_design(ROOT / "examples" / example), tmp_path, quiet=True, render=False)
+    design = load_design(ROOT / "examples" / example)
+    outcome = run_design(design, tmp_path, quiet=True, render=False)
     assert outcome.passed, outcome.reasons
     assert outcome.manifest["watertight"] and outcome.manifest["manifold"]
     assert (tmp_path / "model.stl").exists()
+    # A stretched scn, fbm or turbulence on a mesh reports the tangent frames it followed.
+    frame = outcome.manifest["relief"]["frame"]
+    framed = design.base.shape == "mesh" and design.texture.kind != "lic" and design.texture.stretch != 1
+    assert (frame is not None) == framed
+    if framed:
+        assert frame["field"] == (design.texture.field or frame["field"])
+        assert 0 <= frame["singular_vertices"] <= frame["blended_vertices"] <= frame["vertices"]
 
 
 def test_texture_lic_and_field_errors(tmp_path):

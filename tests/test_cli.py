@@ -339,15 +339,28 @@ def test_lic_streaks_follow_the_field_on_a_tile():
     assert rough.anisotropy > 2.0
 
 
-def test_bench_frames(tmp_path):
-    result = printapp("bench", "frames", "--repeats", "1", "-o", tmp_path)
-    assert result.returncode == 0, result.stderr
-    rows = {
-        (r["method"], r["dtype"]): r
-        for r in json.loads((tmp_path / "bench.json").read_text())["frames"]["rows"]
-    }
+def test_bench_frames(tmp_path, monkeypatch):
+    # In process, on a small tube and two stretches: the stage's full size (a 10^6-vertex tube,
+    # six stretches, three seeds) takes minutes, and is what `printapp bench frames` runs.
+    import printapp.bench.frames as stage
+    from printapp.bench import run_bench
+
+    monkeypatch.setattr(stage, "TUBE_VERTICES", 60_000)
+    monkeypatch.setattr(stage, "STRETCHES", (1.0, 6.0))
+    monkeypatch.setattr(stage, "SEEDS", (1,))
+    run_bench(["frames"], tmp_path, repeats=1)
+    report = json.loads((tmp_path / "bench.json").read_text())["frames"]
+    rows = {(r["method"], r["dtype"]): r for r in report["rows"]}
     assert rows[("duff", "float32")]["max_error"] < 1e-6
     assert rows[("frisvad", "float32")]["max_error"] > 1e-3
+    costs = report["framed_vs_flat"]
+    assert [c["field"].split(" (")[0] for c in costs] == ["along the axis", "around it", "oblique"]
+    assert all(c["framed_ns_per_sample"] > 0 and c["flat_ns_per_sample"] > 0 for c in costs)
+    isotropic, stretched = report["anisotropy"]
+    assert isotropic["noise_ratio"] == pytest.approx(1.0, rel=0.15)
+    assert stretched["noise_ratio"] == pytest.approx(6.0, rel=0.15)
+    assert stretched["worst_angle_error_deg"] < 5.0
+    assert (tmp_path / "frames.png").stat().st_size > 1000
 
 
 def test_slice_command_writes_an_archive_and_a_png_stack(tmp_path):

@@ -40,9 +40,8 @@ def _spread(v: np.uint64) -> np.uint64:
     return (v | (v << np.uint64(2))) & np.uint64(0x1249249249249249)
 
 
-@njit(cache=True)
-def _morton_order(points: np.ndarray, cell: float) -> np.ndarray:
-    """A stable order of the points along the Z-curve of cells of side ``cell`` (LSD radix sort)."""
+@njit(cache=True, parallel=True)
+def _morton_codes(points: np.ndarray, cell: float) -> np.ndarray:
     n = points.shape[0]
     lo = np.empty(3)
     for a in range(3):
@@ -51,11 +50,19 @@ def _morton_order(points: np.ndarray, cell: float) -> np.ndarray:
             lo[a] = min(lo[a], points[k, a])
     codes = np.empty(n, dtype=np.uint64)
     top = 2097151.0  # 21 bits per axis
-    for k in range(n):
+    for k in prange(n):
         qx = np.uint64(min(math.floor((points[k, 0] - lo[0]) / cell), top))
         qy = np.uint64(min(math.floor((points[k, 1] - lo[1]) / cell), top))
         qz = np.uint64(min(math.floor((points[k, 2] - lo[2]) / cell), top))
         codes[k] = _spread(qx) | (_spread(qy) << np.uint64(1)) | (_spread(qz) << np.uint64(2))
+    return codes
+
+
+@njit(cache=True)
+def _morton_order(points: np.ndarray, cell: float) -> np.ndarray:
+    """A stable order of the points along the Z-curve of cells of side ``cell`` (LSD radix sort)."""
+    n = points.shape[0]
+    codes = _morton_codes(points, cell)
     order = np.arange(n)
     spare_codes = np.empty(n, dtype=np.uint64)
     spare = np.empty(n, dtype=np.int64)

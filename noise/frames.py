@@ -18,6 +18,7 @@ singular points (:func:`singular_faces`), for the noise of :mod:`noise.framed`.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -196,12 +197,45 @@ class SurfaceFrames:
         return int(np.count_nonzero(self.singular))
 
 
+@njit(cache=True, parallel=True)
+def _turning_faces(vertices, faces, field, out) -> None:
+    for f in prange(faces.shape[0]):
+        a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
+        e1 = vertices[b] - vertices[a]
+        e2 = vertices[c] - vertices[a]
+        nx = e1[1] * e2[2] - e1[2] * e2[1]
+        ny = e1[2] * e2[0] - e1[0] * e2[2]
+        nz = e1[0] * e2[1] - e1[1] * e2[0]
+        nn = math.sqrt(nx * nx + ny * ny + nz * nz)
+        ll = math.sqrt(e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2])
+        if nn == 0.0 or ll == 0.0:
+            out[f] = False
+            continue
+        nx, ny, nz = nx / nn, ny / nn, nz / nn
+        ux, uy, uz = e1[0] / ll, e1[1] / ll, e1[2] / ll
+        vx, vy, vz = ny * uz - nz * uy, nz * ux - nx * uz, nx * uy - ny * ux
+        live = True
+        angles = np.empty(3)
+        for k in range(3):
+            t = field[faces[f, k]]
+            u = t[0] * ux + t[1] * uy + t[2] * uz
+            v = t[0] * vx + t[1] * vy + t[2] * vz
+            length = math.sqrt(t[0] * t[0] + t[1] * t[1] + t[2] * t[2])
+            live = live and math.hypot(u, v) > 1e-9 * max(length, 1e-300)
+            angles[k] = math.atan2(v, u)
+        total = 0.0
+        for k in range(3):
+            step = angles[(k + 1) % 3] - angles[k]
+            total += (step + 0.5 * math.pi) % math.pi - 0.5 * math.pi
+        out[f] = live and abs(total) > 0.5 * math.pi
+
+
 def singular_faces(vertices: np.ndarray, faces: np.ndarray, field: np.ndarray) -> np.ndarray:
     """Triangles around which a line field turns: its index there is not zero.
 
     Each corner's field vector is projected into the triangle's plane and measured as an
     angle; the angle steps along the three edges, each taken modulo pi into
-    (-pi/2, pi/2] (a line field has no sign), add up to a multiple of pi: zero for a
+    [-pi/2, pi/2) (a line field has no sign), add up to a multiple of pi: zero for a
     regular triangle, +-pi for an index +-1/2 singularity, +-2pi for +-1 (the vortex
     at a pole of circles about an axis, the two zeros every tangent field on a sphere
     has, by the hairy-ball theorem). Triangles with a corner where the field vanishes
@@ -211,25 +245,16 @@ def singular_faces(vertices: np.ndarray, faces: np.ndarray, field: np.ndarray) -
     -------
     (m,) bool array
     """
-    verts = np.asarray(vertices, dtype=np.float64)
-    tris = np.asarray(faces, dtype=np.int64)
-    vec = np.asarray(field, dtype=np.float64)
-    tri = verts[tris]
-    e1 = tri[:, 1] - tri[:, 0]
-    nf = np.cross(e1, tri[:, 2] - tri[:, 0])
-    nf /= np.maximum(np.linalg.norm(nf, axis=1, keepdims=True), 1e-300)
-    e1 /= np.maximum(np.linalg.norm(e1, axis=1, keepdims=True), 1e-300)
-    e2 = np.cross(nf, e1)
-    angles = np.empty((len(tris), 3))
-    live = np.ones(len(tris), dtype=bool)
-    for c in range(3):
-        t = vec[tris[:, c]]
-        u, v = np.einsum("ij,ij->i", t, e1), np.einsum("ij,ij->i", t, e2)
-        live &= np.hypot(u, v) > 1e-9 * np.maximum(np.linalg.norm(t, axis=1), 1e-300)
-        angles[:, c] = np.arctan2(v, u)
-    steps = np.diff(np.concatenate([angles, angles[:, :1]], axis=1), axis=1)
-    steps = np.mod(steps + np.pi / 2, np.pi) - np.pi / 2
-    return live & (np.abs(steps.sum(axis=1)) > np.pi / 2)
+    verts = np.ascontiguousarray(vertices, dtype=np.float64)
+    tris = np.ascontiguousarray(faces, dtype=np.int64)
+    vec = np.ascontiguousarray(field, dtype=np.float64)
+    if verts.ndim != 2 or verts.shape[1] != 3 or vec.shape != verts.shape:
+        raise ValueError("vertices, field: expected (n, 3) arrays of the same shape")
+    if tris.ndim != 2 or tris.shape[1] != 3 or (tris.size and (tris.min() < 0 or tris.max() >= len(verts))):
+        raise ValueError("faces: expected an (m, 3) array of vertex indices")
+    out = np.empty(len(tris), dtype=np.bool_)
+    _turning_faces(verts, tris, vec, out)
+    return out
 
 
 def surface_frames(
@@ -239,6 +264,7 @@ def surface_frames(
     *,
     blend_radius: float,
     method: str = "duff",
+    normals: np.ndarray | None = None,
 ) -> SurfaceFrames:
     """Per-vertex tangent frames that follow a direction field, isotropic around its singular points.
 
@@ -264,6 +290,8 @@ def surface_frames(
         Distance from a singular vertex at which the full stretch returns, > 0.
     method : {"duff", "frisvad"}
         The orthonormal basis where the field gives no direction.
+    normals : (n, 3) float array, optional
+        The vertices' :func:`angle_weighted_normals`, when already computed.
 
     Returns
     -------
@@ -275,7 +303,12 @@ def surface_frames(
         raise ValueError(f"blend_radius: expected a positive distance, got {blend_radius!r}")
     verts = np.asarray(vertices, dtype=np.float64)
     tris = np.asarray(faces, dtype=np.int64)
-    n = angle_weighted_normals(verts, tris)
+    if normals is None:
+        n = angle_weighted_normals(verts, tris)
+    else:
+        n = np.array(normals, dtype=np.float64)
+        if n.shape != verts.shape:
+            raise ValueError(f"normals: expected one per vertex, shape {verts.shape}, got {n.shape}")
     unused = np.linalg.norm(n, axis=1) < 0.5
     n[unused] = (0.0, 0.0, 1.0)  # vertices of no face: any frame will do
     b1, b2 = onb(n, method, normalize=True)
@@ -300,7 +333,10 @@ def surface_frames(
         from scipy.spatial import cKDTree
 
         # Bounded: beyond the radius the distance does not matter (inf), and far points cost nothing.
-        distance, _ = cKDTree(verts[singular]).query(verts, distance_upper_bound=blend_radius, workers=-1)
+        distance = np.zeros(len(verts))
+        distance[~singular], _ = cKDTree(verts[singular]).query(
+            verts[~singular], distance_upper_bound=blend_radius, workers=-1
+        )
         x = np.clip(distance / blend_radius, 0.0, 1.0)
         blend = x * x * (3.0 - 2.0 * x)
     b = np.where(singular[:, None], b2, np.cross(n, t))

@@ -54,38 +54,37 @@ class FrameSummary:
         }
 
 
-def evaluate_texture_on_mesh(
-    mesh, texture: Texture, pitch_mm: float, base=None
-) -> tuple[np.ndarray, FrameSummary | None]:
-    """Raw texture values at the vertices of ``mesh`` (a trimesh.Trimesh, mm), and the frames followed.
+def texture_frames(mesh, texture: Texture, base=None):
+    """The tangent frames a stretched texture follows on ``mesh`` (mm), and their summary.
 
-    A stretched scn, fbm or turbulence follows the surface: each vertex's frame is its
-    normal and the field (:func:`printapp.texture_kinds.stretch_field`) projected into
-    its tangent plane, isotropic around the field's singular points
-    (:func:`noise.frames.surface_frames`), and the noise is stretched along the frame's
-    tangent (:mod:`noise.framed`). Without a stretch, and for marble, the noise is
-    evaluated at the vertices as on a tile (no frame: returns None for it).
+    Each vertex's frame is its angle-weighted normal and the field
+    (:func:`printapp.texture_kinds.stretch_field`) projected into its tangent plane,
+    isotropic around the field's singular points over ``frame_blend_mm`` (default
+    ``stretch * feature_size_mm / 2``), with the ONB ``texture.onb`` there
+    (:func:`noise.frames.surface_frames`). ``base``: the mesh ``mesh`` was refined from
+    (image fields are laid on it).
+
+    Returns
+    -------
+    (noise.frames.SurfaceFrames, FrameSummary)
     """
-    kind = texture_kind(texture.kind)
-    vertices = np.asarray(mesh.vertices)
-    if kind.framed is None or texture.stretch == 1.0:
-        return evaluate_texture(vertices, texture, pitch_mm=pitch_mm), None
-    from noise.frames import surface_frames
+    from noise.frames import angle_weighted_normals, surface_frames
     from printapp.fields import field_on_mesh
 
     spec = stretch_field(texture)
     radius = texture.frame_blend_mm
     if radius is None:
         radius = 0.5 * texture.stretch * texture.feature_size_mm
+    vertices = np.asarray(mesh.vertices)
+    faces = np.asarray(mesh.faces)
+    normals = angle_weighted_normals(vertices, faces)
     frames = surface_frames(
         vertices,
-        np.asarray(mesh.faces),
-        field_on_mesh(spec, mesh, base),
+        faces,
+        field_on_mesh(spec, mesh, base, normals),
         blend_radius=radius,
         method=texture.onb,
-    )
-    values = kind.framed(
-        vertices / texture.feature_size_mm, frames, texture, pitch_mm / texture.feature_size_mm
+        normals=normals,
     )
     summary = FrameSummary(
         field=spec,
@@ -95,7 +94,40 @@ def evaluate_texture_on_mesh(
         blended_vertices=int(np.count_nonzero(frames.blend < 1.0)),
         vertices=len(vertices),
     )
-    return values, summary
+    return frames, summary
+
+
+def evaluate_texture_in_frames(
+    points_mm: np.ndarray, frames, texture: Texture, pitch_mm: float
+) -> np.ndarray:
+    """Raw values of a stretched scn, fbm or turbulence at ``points_mm``, along ``frames``' tangents.
+
+    The framed counterpart of :func:`evaluate_texture` (:mod:`noise.framed`): the noise is
+    ``texture.stretch`` times longer along each point's tangent than across it, blended
+    to isotropic where ``frames.blend`` falls to 0.
+    """
+    kind = texture_kind(texture.kind)
+    if kind.framed is None:
+        raise ValueError(f"{kind.name} textures do not follow tangent frames")
+    return kind.framed(
+        np.asarray(points_mm) / texture.feature_size_mm, frames, texture, pitch_mm / texture.feature_size_mm
+    )
+
+
+def evaluate_texture_on_mesh(
+    mesh, texture: Texture, pitch_mm: float, base=None
+) -> tuple[np.ndarray, FrameSummary | None]:
+    """Raw texture values at the vertices of ``mesh`` (a trimesh.Trimesh, mm), and the frames followed.
+
+    A stretched scn, fbm or turbulence follows the surface (:func:`texture_frames`,
+    :func:`evaluate_texture_in_frames`). Without a stretch, and for marble, the noise is
+    evaluated at the vertices as on a tile, and no frame is returned.
+    """
+    vertices = np.asarray(mesh.vertices)
+    if texture_kind(texture.kind).framed is None or texture.stretch == 1.0:
+        return evaluate_texture(vertices, texture, pitch_mm=pitch_mm), None
+    frames, summary = texture_frames(mesh, texture, base)
+    return evaluate_texture_in_frames(vertices, frames, texture, pitch_mm), summary
 
 
 def normalise_peak_to_valley(values: np.ndarray, amplitude_mm: float) -> np.ndarray:

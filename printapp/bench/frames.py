@@ -169,10 +169,7 @@ def framed_against_flat(repeats: int, n_vertices: float, stretch: float = 6.0) -
     """Cost per sample of framed and flat fBm on a closed tube of about ``n_vertices`` vertices (edge F/4)."""
     import time
 
-    from noise.frames import surface_frames
-    from printapp.fields import field_on_mesh
-    from printapp.texture import evaluate_texture
-    from printapp.texture_kinds import texture_kind
+    from printapp.texture import evaluate_texture, evaluate_texture_in_frames, texture_frames
 
     edge = 0.25  # mm, with 1 mm features: the relief's sampling on meshes
     radius = 40.0 if n_vertices >= 5e5 else 8.0
@@ -184,19 +181,12 @@ def framed_against_flat(repeats: int, n_vertices: float, stretch: float = 6.0) -
     for name, spec in FIELDS.items():
         texture = _texture(stretch, spec)
         start = time.perf_counter()
-        frames = surface_frames(
-            vertices,
-            np.asarray(mesh.faces),
-            field_on_mesh(spec, mesh),
-            blend_radius=stretch / 2,
-            method="duff",
-        )
+        frames, _ = texture_frames(mesh, texture)
         frame_seconds = time.perf_counter() - start
-        framed = texture_kind("fbm").framed
         medians, _, cores = interleaved_seconds(
             {
                 "flat": lambda t=texture: evaluate_texture(vertices, t, pitch_mm=edge),
-                "framed": lambda t=texture, f=frames, g=framed: g(vertices, f, t, edge),
+                "framed": lambda t=texture, f=frames: evaluate_texture_in_frames(vertices, f, t, edge),
             },
             repeats,
         )

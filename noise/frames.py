@@ -198,7 +198,7 @@ class SurfaceFrames:
 
 
 @njit(cache=True, parallel=True)
-def _turning_faces(vertices, faces, field, out) -> None:
+def _turning_faces(vertices, faces, field, normals, crease_cos, out) -> None:
     for f in prange(faces.shape[0]):
         a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
         e1 = vertices[b] - vertices[a]
@@ -212,6 +212,13 @@ def _turning_faces(vertices, faces, field, out) -> None:
             out[f] = False
             continue
         nx, ny, nz = nx / nn, ny / nn, nz / nn
+        crease = False
+        for k in range(3):
+            v = faces[f, k]
+            crease = crease or normals[v, 0] * nx + normals[v, 1] * ny + normals[v, 2] * nz < crease_cos
+        if crease:  # the corners' frames average differently oriented faces: their turn is the crease's
+            out[f] = False
+            continue
         ux, uy, uz = e1[0] / ll, e1[1] / ll, e1[2] / ll
         vx, vy, vz = ny * uz - nz * uy, nz * ux - nx * uz, nx * uy - ny * ux
         live = True
@@ -230,7 +237,13 @@ def _turning_faces(vertices, faces, field, out) -> None:
         out[f] = live and abs(total) > 0.5 * math.pi
 
 
-def singular_faces(vertices: np.ndarray, faces: np.ndarray, field: np.ndarray) -> np.ndarray:
+CREASE_DEG = 30.0
+"""A triangle with a corner normal this far from its own normal sits on a crease (see singular_faces)."""
+
+
+def singular_faces(
+    vertices: np.ndarray, faces: np.ndarray, field: np.ndarray, normals: np.ndarray | None = None
+) -> np.ndarray:
     """Triangles around which a line field turns: its index there is not zero.
 
     Each corner's field vector is projected into the triangle's plane and measured as an
@@ -239,7 +252,11 @@ def singular_faces(vertices: np.ndarray, faces: np.ndarray, field: np.ndarray) -
     regular triangle, +-pi for an index +-1/2 singularity, +-2pi for +-1 (the vortex
     at a pole of circles about an axis, the two zeros every tangent field on a sphere
     has, by the hairy-ball theorem). Triangles with a corner where the field vanishes
-    are not counted here (that vertex is singular itself).
+    are not counted here (that vertex is singular itself). Neither are triangles on a
+    crease (a corner's normal ``CREASE_DEG`` or more from the triangle's; ``normals``
+    default to the angle-weighted ones): there each corner's field lies in a plane
+    averaged over differently oriented faces, and turns with the crease, not the field.
+    A CAD part's edges would otherwise all look singular.
 
     Returns
     -------
@@ -252,8 +269,15 @@ def singular_faces(vertices: np.ndarray, faces: np.ndarray, field: np.ndarray) -
         raise ValueError("vertices, field: expected (n, 3) arrays of the same shape")
     if tris.ndim != 2 or tris.shape[1] != 3 or (tris.size and (tris.min() < 0 or tris.max() >= len(verts))):
         raise ValueError("faces: expected an (m, 3) array of vertex indices")
+    n = (
+        angle_weighted_normals(verts, tris)
+        if normals is None
+        else np.ascontiguousarray(normals, dtype=np.float64)
+    )
+    if n.shape != verts.shape:
+        raise ValueError(f"normals: expected one per vertex, shape {verts.shape}, got {n.shape}")
     out = np.empty(len(tris), dtype=np.bool_)
-    _turning_faces(verts, tris, vec, out)
+    _turning_faces(verts, tris, vec, n, math.cos(math.radians(CREASE_DEG)), out)
     return out
 
 
@@ -323,7 +347,7 @@ def surface_frames(
         length = np.linalg.norm(t, axis=1)
         singular = length <= 1e-9 * np.maximum(np.linalg.norm(vec, axis=1), 1e-300)
         singular |= unused
-        singular[tris[singular_faces(verts, tris, t)].ravel()] = True
+        singular[tris[singular_faces(verts, tris, t, n)].ravel()] = True
         t = np.where(singular[:, None], b1, t / np.maximum(length, 1e-300)[:, None])
     if singular.all():
         blend = np.zeros(len(verts))

@@ -408,6 +408,21 @@ def test_sphere_with_an_axis_field_is_isotropic_at_the_poles():
     np.testing.assert_allclose(values, again, rtol=0, atol=1e-15)
 
 
+def test_creases_are_not_singular():
+    # Circles about z on a box: the field turns about the top's and bottom's centres only. The
+    # box's edges, where each vertex's frame averages two or three faces, do not count.
+    box = trimesh.creation.box(extents=(20.0, 12.0, 8.0))
+    vertices, faces = trimesh.remesh.subdivide_to_size(box.vertices, box.faces, 0.5)
+    merged = trimesh.Trimesh(vertices, faces)
+    vertices, faces = np.asarray(merged.vertices), np.asarray(merged.faces)
+    field = field_rotation(vertices, faces, [0.0, 0.0, 1.0], [0.0, 0.0, 0.0])
+    frames = surface_frames(vertices, faces, field, blend_radius=2.0)
+    singular = vertices[frames.singular]
+    assert 2 <= len(singular) <= 12
+    assert np.all(np.hypot(singular[:, 0], singular[:, 1]) < 0.8)
+    assert np.all(np.abs(np.abs(singular[:, 2]) - 4.0) < 1e-9)
+
+
 def test_sphere_noise_is_continuous_away_from_the_poles():
     # Refining the mesh halves the largest step between neighbours of a continuous function;
     # a seam does not shrink. The control swaps t and b on half the sphere.

@@ -9,13 +9,16 @@ kernel is measured in the point's frame, offsets to impulses scaled by 1/s_p alo
 
 so each kernel is a needle s_p long along t and 1 across: features s_p times longer
 along t than across it. Only t enters (the kernel is round about t), so b and n need
-not be given to evaluate, only to cull. This is how Lagae et al. (2009, "Procedural
-noise using sparse Gabor convolution", section 5.3, surface noise) evaluate anisotropic
-noise on surfaces: impulses are scattered in 3-D world space, and each point's kernel
-is oriented by the point's own tangent frame, so no parametrisation is needed and the
-noise is continuous wherever the frame is (the sum is a continuous function of p, t
-and s_p; t enters only through (d.t)^2, so a line field's sign flips do not matter,
-and where s_p = 1 t does not enter at all).
+not be given to evaluate, only to cull. This is how Lagae et al. ("Procedural noise
+using sparse Gabor convolution", ACM TOG 28(3), 2009) make their setup-free surface
+noise: impulses are scattered in 3-D world space, and each point's kernel is oriented
+in that point's tangent plane, so no parametrisation is needed. We follow it for that
+reason (a part has no global u, v to stretch along), and because the result is
+continuous wherever the frame is: the sum is a continuous function of p, t and s_p; t
+enters only through (d.t)^2, so a line field's sign flips do not matter, and where
+s_p = 1 t does not enter at all. Their kernel is a Gabor kernel oriented by a
+frequency vector; ours is the talk's cubic kernel sheared by a metric, so that the
+same impulses give the flat noise when s = 1.
 
 The impulses (a stratified Poisson-like process):
 

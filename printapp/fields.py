@@ -36,6 +36,11 @@ def _vector(arg: str, spec: str) -> np.ndarray:
     return values
 
 
+def lic_field(texture) -> str:  # noqa: ANN001
+    """The field lic's streamlines follow: the design's ``[texture] field``, else 'constant:0' (along +x)."""
+    return texture.field if texture.field is not None else "constant:0"
+
+
 def is_tile_field(spec: str) -> bool:
     """Whether the spec also works on a flat tile (constant, swirl, image)."""
     return spec.partition(":")[0] in ("constant", "swirl", "image")
@@ -169,8 +174,6 @@ def surface_lic_values(mesh, texture, step_mm: float, base=None) -> np.ndarray:
 
     vertices = np.asarray(mesh.vertices)
     faces = np.asarray(mesh.faces)
-    from printapp.texture_kinds import lic_field
-
     field = field_on_mesh(lic_field(texture), mesh, base)
     return lic_surface(
         vertices,

@@ -244,7 +244,7 @@ def _lic_grid(
     x_mm: np.ndarray, y_mm: np.ndarray, texture: TextureParams, pitch_mm: float | None
 ) -> np.ndarray:
     from noise.lic import lic2d
-    from printapp.fields import field_on_grid
+    from printapp.fields import field_on_grid, lic_field
 
     values = _noise().sparse_convolution_grid(
         x_mm / texture.feature_size_mm, y_mm / texture.feature_size_mm, **_common(texture)
@@ -317,11 +317,6 @@ def texture_kind(name: str) -> TextureKind:
     if name not in TEXTURE_KINDS:
         raise ValueError(f"expected a texture kind, one of {', '.join(TEXTURE_KIND_NAMES)}, got {name!r}")
     return TEXTURE_KINDS[name]
-
-
-def lic_field(texture: TextureParams) -> str:
-    """The field lic's streamlines follow: the design's, else 'constant:0' (along +x)."""
-    return texture.field if texture.field is not None else "constant:0"
 
 
 def stretch_field(texture: TextureParams) -> str:

@@ -10,9 +10,16 @@ Two bases (both right-handed: b1 x b2 = n):
   (near the threshold, in float32 from about 1 + n.z < 1e-3), and the basis loses its
   orthonormality; Duff et al. choose the sign s = copysign(1, n.z) so that the
   denominator ``s + n.z`` never cancels, which is exact to rounding everywhere.
+
+On meshes: angle-weighted vertex normals, per-vertex and per-face frames, and frames
+that follow a direction field (:func:`surface_frames`), isotropic around the field's
+singular points (:func:`singular_faces`), for the noise of :mod:`noise.framed`.
 """
 
 from __future__ import annotations
+
+import math
+from dataclasses import dataclass
 
 import numpy as np
 from numba import njit, prange
@@ -163,3 +170,198 @@ def face_frames(
     n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     b1, b2 = onb(n, method, normalize=True)
     return n / np.linalg.norm(n, axis=1, keepdims=True), b1, b2
+
+
+# ---------------------------------------------------------------------------------------------
+# Tangent frames that follow a direction field on a mesh
+
+
+@dataclass(frozen=True)
+class SurfaceFrames:
+    """A tangent frame (t, b, n) per vertex, and how far each vertex is from the field's singular points."""
+
+    tangent: np.ndarray
+    """(n, 3) unit t: the field projected into the tangent plane; the ONB's first vector where singular."""
+    bitangent: np.ndarray
+    """(n, 3) unit b = n x t; the ONB's second vector where singular."""
+    normal: np.ndarray
+    """(n, 3) unit angle-weighted normals."""
+    blend: np.ndarray
+    """(n,) in [0, 1]: 0 at singular vertices, a smoothstep of the distance to the nearest one, 1 beyond
+    the radius (everywhere, when there are none)."""
+    singular: np.ndarray
+    """(n,) bool: the field vanishes at the vertex, or turns about a triangle the vertex is a corner of."""
+
+    @property
+    def singular_count(self) -> int:
+        return int(np.count_nonzero(self.singular))
+
+
+@njit(cache=True, parallel=True)
+def _turning_faces(vertices, faces, field, normals, crease_cos, out) -> None:
+    for f in prange(faces.shape[0]):
+        a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
+        e1 = vertices[b] - vertices[a]
+        e2 = vertices[c] - vertices[a]
+        nx = e1[1] * e2[2] - e1[2] * e2[1]
+        ny = e1[2] * e2[0] - e1[0] * e2[2]
+        nz = e1[0] * e2[1] - e1[1] * e2[0]
+        nn = math.sqrt(nx * nx + ny * ny + nz * nz)
+        ll = math.sqrt(e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2])
+        if nn == 0.0 or ll == 0.0:
+            out[f] = False
+            continue
+        nx, ny, nz = nx / nn, ny / nn, nz / nn
+        crease = False
+        for k in range(3):
+            v = faces[f, k]
+            crease = crease or normals[v, 0] * nx + normals[v, 1] * ny + normals[v, 2] * nz < crease_cos
+        if crease:  # the corners' frames average differently oriented faces: their turn is the crease's
+            out[f] = False
+            continue
+        ux, uy, uz = e1[0] / ll, e1[1] / ll, e1[2] / ll
+        vx, vy, vz = ny * uz - nz * uy, nz * ux - nx * uz, nx * uy - ny * ux
+        live = True
+        angles = np.empty(3)
+        for k in range(3):
+            t = field[faces[f, k]]
+            u = t[0] * ux + t[1] * uy + t[2] * uz
+            v = t[0] * vx + t[1] * vy + t[2] * vz
+            length = math.sqrt(t[0] * t[0] + t[1] * t[1] + t[2] * t[2])
+            live = live and math.hypot(u, v) > 1e-9 * max(length, 1e-300)
+            angles[k] = math.atan2(v, u)
+        total = 0.0
+        for k in range(3):
+            step = angles[(k + 1) % 3] - angles[k]
+            total += (step + 0.5 * math.pi) % math.pi - 0.5 * math.pi
+        out[f] = live and abs(total) > 0.5 * math.pi
+
+
+CREASE_DEG = 30.0
+"""A triangle with a corner normal this far from its own normal sits on a crease (see singular_faces)."""
+
+
+def singular_faces(
+    vertices: np.ndarray, faces: np.ndarray, field: np.ndarray, normals: np.ndarray | None = None
+) -> np.ndarray:
+    """Triangles around which a line field turns: its index there is not zero.
+
+    Each corner's field vector is projected into the triangle's plane and measured as an
+    angle; the angle steps along the three edges, each taken modulo pi into
+    [-pi/2, pi/2) (a line field has no sign), add up to a multiple of pi: zero for a
+    regular triangle, +-pi for an index +-1/2 singularity, +-2pi for +-1 (the vortex
+    at a pole of circles about an axis, the two zeros every tangent field on a sphere
+    has, by the hairy-ball theorem). Triangles with a corner where the field vanishes
+    are not counted here (that vertex is singular itself). Neither are triangles on a
+    crease (a corner's normal ``CREASE_DEG`` or more from the triangle's; ``normals``
+    default to the angle-weighted ones): there each corner's field lies in a plane
+    averaged over differently oriented faces, and turns with the crease, not the field.
+    A CAD part's edges would otherwise all look singular.
+
+    Returns
+    -------
+    (m,) bool array
+    """
+    verts = np.ascontiguousarray(vertices, dtype=np.float64)
+    tris = np.ascontiguousarray(faces, dtype=np.int64)
+    vec = np.ascontiguousarray(field, dtype=np.float64)
+    if verts.ndim != 2 or verts.shape[1] != 3 or vec.shape != verts.shape:
+        raise ValueError("vertices, field: expected (n, 3) arrays of the same shape")
+    if tris.ndim != 2 or tris.shape[1] != 3 or (tris.size and (tris.min() < 0 or tris.max() >= len(verts))):
+        raise ValueError("faces: expected an (m, 3) array of vertex indices")
+    n = (
+        angle_weighted_normals(verts, tris)
+        if normals is None
+        else np.ascontiguousarray(normals, dtype=np.float64)
+    )
+    if n.shape != verts.shape:
+        raise ValueError(f"normals: expected one per vertex, shape {verts.shape}, got {n.shape}")
+    out = np.empty(len(tris), dtype=np.bool_)
+    _turning_faces(verts, tris, vec, n, math.cos(math.radians(CREASE_DEG)), out)
+    return out
+
+
+def surface_frames(
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    field: np.ndarray | None,
+    *,
+    blend_radius: float,
+    method: str = "duff",
+    normals: np.ndarray | None = None,
+) -> SurfaceFrames:
+    """Per-vertex tangent frames that follow a direction field, isotropic around its singular points.
+
+    The normal n is the angle-weighted pseudo-normal; the tangent t is the field
+    projected into the tangent plane and normalised; the bitangent is b = n x t. Where
+    the field vanishes or turns about a triangle (see :func:`singular_faces`), and
+    everywhere when ``field`` is None, (t, b) is the orthonormal basis of n
+    (:func:`onb`: Duff et al. 2017 by default, Frisvad 2012 selectable) and ``blend``
+    is 0: the noise built on these frames is isotropic there, and the stretch returns
+    over ``blend_radius`` (a smoothstep of the straight-line distance to the nearest
+    singular vertex, a lower bound of the distance along the surface).
+
+    Parameters
+    ----------
+    vertices : (n, 3) float array
+        Positions (mm, or any unit; ``blend_radius`` is in the same unit).
+    faces : (m, 3) int array
+        Triangles, counter-clockwise seen from outside.
+    field : (n, 3) float array or None
+        A direction per vertex, of any length (zero where it vanishes); only its
+        direction up to sign matters.
+    blend_radius : float
+        Distance from a singular vertex at which the full stretch returns, > 0.
+    method : {"duff", "frisvad"}
+        The orthonormal basis where the field gives no direction.
+    normals : (n, 3) float array, optional
+        The vertices' :func:`angle_weighted_normals`, when already computed.
+
+    Returns
+    -------
+    SurfaceFrames
+    """
+    if method not in ONB_METHODS:
+        raise ValueError(f"method: expected one of {ONB_METHODS}, got {method!r}")
+    if not (np.isfinite(blend_radius) and blend_radius > 0):
+        raise ValueError(f"blend_radius: expected a positive distance, got {blend_radius!r}")
+    verts = np.asarray(vertices, dtype=np.float64)
+    tris = np.asarray(faces, dtype=np.int64)
+    if normals is None:
+        n = angle_weighted_normals(verts, tris)
+    else:
+        n = np.array(normals, dtype=np.float64)
+        if n.shape != verts.shape:
+            raise ValueError(f"normals: expected one per vertex, shape {verts.shape}, got {n.shape}")
+    unused = np.linalg.norm(n, axis=1) < 0.5
+    n[unused] = (0.0, 0.0, 1.0)  # vertices of no face: any frame will do
+    b1, b2 = onb(n, method, normalize=True)
+    if field is None:
+        t = b1.copy()
+        singular = np.ones(len(verts), dtype=bool)
+    else:
+        vec = np.asarray(field, dtype=np.float64)
+        if vec.shape != verts.shape or not np.all(np.isfinite(vec)):
+            raise ValueError(f"field: expected finite vectors shaped like the vertices {verts.shape}")
+        t = vec - np.einsum("ij,ij->i", vec, n)[:, None] * n
+        length = np.linalg.norm(t, axis=1)
+        singular = length <= 1e-9 * np.maximum(np.linalg.norm(vec, axis=1), 1e-300)
+        singular |= unused
+        singular[tris[singular_faces(verts, tris, t, n)].ravel()] = True
+        t = np.where(singular[:, None], b1, t / np.maximum(length, 1e-300)[:, None])
+    if singular.all():
+        blend = np.zeros(len(verts))
+    elif not singular.any():
+        blend = np.ones(len(verts))
+    else:
+        from scipy.spatial import cKDTree
+
+        # Bounded: beyond the radius the distance does not matter (inf), and far points cost nothing.
+        distance = np.zeros(len(verts))
+        distance[~singular], _ = cKDTree(verts[singular]).query(
+            verts[~singular], distance_upper_bound=blend_radius, workers=-1
+        )
+        x = np.clip(distance / blend_radius, 0.0, 1.0)
+        blend = x * x * (3.0 - 2.0 * x)
+    b = np.where(singular[:, None], b2, np.cross(n, t))
+    return SurfaceFrames(t, b, n, blend, singular)

@@ -50,22 +50,37 @@ def _project_to_tangent(vectors: np.ndarray, normals: np.ndarray) -> np.ndarray:
     return np.where(length > 1e-9, t / np.maximum(length, 1e-300), 0.0)
 
 
-def field_constant(vertices: np.ndarray, faces: np.ndarray, direction) -> np.ndarray:
-    """A constant world direction projected into each vertex's tangent plane (unit, or 0 where normal)."""
+def _vertex_normals(vertices, faces, normals) -> np.ndarray:
+    if normals is None:
+        return angle_weighted_normals(vertices, faces)
+    n = np.asarray(normals, dtype=np.float64)
+    if n.shape != np.shape(vertices):
+        raise ValueError(f"normals: expected one per vertex, shape {np.shape(vertices)}, got {n.shape}")
+    return n
+
+
+def field_constant(vertices: np.ndarray, faces: np.ndarray, direction, normals=None) -> np.ndarray:
+    """A constant world direction projected into each vertex's tangent plane (unit, or 0 where normal).
+
+    ``normals``: the vertices' angle-weighted normals when already computed.
+    """
     d = np.asarray(direction, dtype=np.float64)
     if d.shape != (3,) or not np.all(np.isfinite(d)) or np.linalg.norm(d) == 0:
         raise ValueError(f"direction: expected a finite non-zero 3-vector, got {direction!r}")
-    n = angle_weighted_normals(vertices, faces)
+    n = _vertex_normals(vertices, faces, normals)
     return _project_to_tangent(np.broadcast_to(d, n.shape), n)
 
 
-def field_rotation(vertices: np.ndarray, faces: np.ndarray, axis, centre) -> np.ndarray:
-    """Circles about an axis through ``centre``: ``axis x (p - centre)`` in the tangent plane."""
+def field_rotation(vertices: np.ndarray, faces: np.ndarray, axis, centre, normals=None) -> np.ndarray:
+    """Circles about an axis through ``centre``: ``axis x (p - centre)`` in the tangent plane.
+
+    ``normals``: the vertices' angle-weighted normals when already computed.
+    """
     a = np.asarray(axis, dtype=np.float64)
     c = np.asarray(centre, dtype=np.float64)
     if a.shape != (3,) or c.shape != (3,) or not np.all(np.isfinite(a)) or np.linalg.norm(a) == 0:
         raise ValueError("axis, centre: expected a finite non-zero axis and a finite centre")
-    n = angle_weighted_normals(vertices, faces)
+    n = _vertex_normals(vertices, faces, normals)
     return _project_to_tangent(np.cross(a / np.linalg.norm(a), np.asarray(vertices) - c), n)
 
 

@@ -99,11 +99,22 @@ class Texture(_Section):
     low: Annotated[int, at.Ge(0), at.Le(16)] = 0
     high: Annotated[int, at.Ge(0), at.Le(16)] = 4
     stretch: Annotated[float, at.Ge(1.0), at.Le(100.0)] = 1.0
-    """Elongation of the features along ``angle``: 1 is isotropic, 8 looks brushed."""
+    """Elongation of the features along ``angle`` (tiles) or ``field`` (meshes): 1 is isotropic, 8 looks
+    brushed."""
     angle_rad: Annotated[float, at.Ge(-2 * math.pi), at.Le(2 * math.pi)] = 0.0
-    """Direction of elongation in the xy plane, from +x towards +y."""
-    field: str = "constant:0"
-    """lic: the direction field, 'constant:ANGLE' (degrees), 'swirl' or 'image:FILE'."""
+    """Direction of elongation in the xy plane, from +x towards +y; on a mesh without ``field``, that
+    world direction projected into each tangent plane (``field = "constant:ANGLE"``)."""
+    field: str | None = None
+    """The direction field: where lic's streamlines run ('constant:ANGLE' in degrees, 'swirl',
+    'image:FILE'; on meshes also 'direction:X,Y,Z', 'axis:X,Y,Z', 'curvature:max|min') [lic:
+    'constant:0']; on meshes also the direction scn, fbm and turbulence are stretched along, in
+    each vertex's tangent frame [default: 'constant:' with ``angle``]."""
+    frame_blend_mm: Annotated[float, at.Gt(0.0), at.Le(1000.0)] | None = None
+    """Meshes: the radius around the field's singular points (where it vanishes or turns) over which
+    the stretch fades to isotropic [default: stretch * feature_size_mm / 2, a kernel's reach]."""
+    onb: Literal["duff", "frisvad"] = "duff"
+    """Meshes: the orthonormal basis of the normal that gives the frame where the field gives no
+    direction (Duff et al. 2017; Frisvad 2012 fails near n = (0, 0, -1))."""
     length_mm: Annotated[float, at.Ge(1e-3), at.Le(1000.0)] = 2.0
     """lic: half-length of the streamlines the noise is averaged along (mm)."""
     vein_angle_rad: Annotated[float, at.Ge(-2 * math.pi), at.Le(2 * math.pi)] = 0.0
@@ -123,10 +134,10 @@ class Texture(_Section):
 
     @field_validator("field")
     @classmethod
-    def _field_spec(cls, spec: str) -> str:
+    def _field_spec(cls, spec: str | None) -> str | None:
         from printapp.fields import check_field_spec
 
-        return check_field_spec(spec)
+        return None if spec is None else check_field_spec(spec)
 
     @field_validator("palette")
     @classmethod
@@ -392,6 +403,28 @@ class Design(_Section):
         return lh if lh is not None else self.printer.profile.layer_height_mm
 
     @model_validator(mode="after")
+    def _stretch_direction(self) -> Design:
+        # A stretched noise has one direction: say which when two are given, never ignore one.
+        texture = self.texture
+        if (
+            texture.kind not in ("scn", "fbm", "turbulence")
+            or texture.stretch == 1.0
+            or texture.field is None
+        ):
+            return self
+        if isinstance(self.base, TileBase):
+            raise ValueError(
+                f"texture.field {texture.field!r}: on a tile, {texture.kind} is stretched along angle_deg in "
+                "the tile's frame; field directs lic, and stretched noise on a mesh base"
+            )
+        if texture.angle_rad != 0.0:
+            raise ValueError(
+                f"texture: give either field ({texture.field!r}) or angle_deg "
+                f"({math.degrees(texture.angle_rad):g}) for the stretch on a mesh, not both"
+            )
+        return self
+
+    @model_validator(mode="after")
     def _grid_size(self) -> Design:
         if isinstance(self.base, TileBase):
             pitch = self.pitch_mm
@@ -469,7 +502,7 @@ def load_design(path: str | Path) -> Design:
     data = read_toml(path, str(path), "design", DesignError)
     data = _include_texture(data, path)
     design = design_from_dict(data, str(path))
-    kind, _, image = design.texture.field.partition(":")
+    kind, _, image = (design.texture.field or "").partition(":")
     if kind == "image" and not Path(image).is_absolute():
         field = f"image:{path.parent / image}"
         design = design.model_copy(update={"texture": design.texture.model_copy(update={"field": field})})

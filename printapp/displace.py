@@ -7,6 +7,7 @@ from pathlib import Path
 
 from printapp.errors import DesignError
 from printapp.mesh import SolidCheck
+from printapp.texture import FrameSummary
 
 _FLAGS = {
     "relief.amplitude_mm": "--amplitude-mm",
@@ -34,6 +35,8 @@ class Displaced:
     written: list[Path]
     repair_note: str | None = None
     """With ``--repair``: parts found, closed and united (nothing is dropped)."""
+    frame: FrameSummary | None = None
+    """The tangent frames a stretched scn, fbm or turbulence followed, else None."""
 
 
 def displace_mesh_file(
@@ -46,6 +49,7 @@ def displace_mesh_file(
     seed: int = 0,
     octaves: int = 4,
     field: str = "swirl",
+    stretch: float = 1.0,
     length_mm: float = 2.0,
     scale: float = 1.0,
     printer: str = "prusa-sl1",
@@ -57,7 +61,8 @@ def displace_mesh_file(
     The options go through the design schema (the same checks and messages as a design's
     ``[texture]``, ``[relief]`` and ``[printer]``). The result must not fold a triangle,
     must be a valid solid, and must not pass through itself in any layer of ``printer``
-    (winding numbers); otherwise nothing is written.
+    (winding numbers); otherwise nothing is written. With ``stretch`` > 1, scn, fbm and
+    turbulence are stretched along ``field`` in each vertex's tangent frame.
     """
     from printapp.design import design_from_dict
     from printapp.exporters import check_mesh_output, write_mesh
@@ -74,6 +79,7 @@ def displace_mesh_file(
             "seed": seed,
             "octaves": octaves,
             "field": field,
+            "stretch": stretch,
             "length_mm": length_mm,
         },
         "relief": {"amplitude_mm": amplitude_mm},
@@ -113,5 +119,10 @@ def displace_mesh_file(
         note = overlap.message if overlap.slight else None
     written = write_mesh(out, relief.mesh.vertices, relief.mesh.faces, refractive_index=refractive_index)
     return Displaced(
-        solid, relief.softened_vertices, note, written, None if repaired is None else repaired.sentence()
+        solid,
+        relief.softened_vertices,
+        note,
+        written,
+        None if repaired is None else repaired.sentence(),
+        relief.frame,
     )

@@ -41,6 +41,11 @@ def _vector(arg: str, spec: str) -> np.ndarray:
     return values
 
 
+def lic_field(texture) -> str:  # noqa: ANN001
+    """The field lic's streamlines follow: the design's ``[texture] field``, else 'constant:0' (along +x)."""
+    return texture.field if texture.field is not None else "constant:0"
+
+
 def is_tile_field(spec: str) -> bool:
     """Whether the spec also works on a flat tile (constant, swirl, image)."""
     return spec.partition(":")[0] in ("constant", "swirl", "image")
@@ -121,12 +126,13 @@ def _angle_map(path: Path, size: int = 1024) -> np.ndarray:
     return values[::-1] / 255.0 * math.pi
 
 
-def field_on_mesh(spec: str, mesh, base=None) -> np.ndarray:
+def field_on_mesh(spec: str, mesh, base=None, normals: np.ndarray | None = None) -> np.ndarray:
     """Tangent vectors per vertex of ``mesh`` (zero where the field vanishes) for ``spec``.
 
     ``base`` is the unrefined mesh that ``mesh`` was refined from (its faces' parents in
     ``mesh.metadata["parent_face"]``): image fields are laid on it through an xatlas UV
-    layout, computed on the small base mesh rather than the refined one.
+    layout, computed on the small base mesh rather than the refined one. ``normals``: the
+    vertices' angle-weighted normals, when the caller has them already.
     """
     from noise.surface import field_constant, field_from_angle_map, field_principal_curvature, field_rotation
 
@@ -137,13 +143,13 @@ def field_on_mesh(spec: str, mesh, base=None) -> np.ndarray:
     centre = 0.5 * (vertices.min(axis=0) + vertices.max(axis=0))
     if kind == "constant":
         a = math.radians(float(arg))
-        return field_constant(vertices, faces, [math.cos(a), math.sin(a), 0.0])
+        return field_constant(vertices, faces, [math.cos(a), math.sin(a), 0.0], normals)
     if kind == "direction":
-        return field_constant(vertices, faces, _vector(arg, spec))
+        return field_constant(vertices, faces, _vector(arg, spec), normals)
     if kind == "swirl":
-        return field_rotation(vertices, faces, [0.0, 0.0, 1.0], centre)
+        return field_rotation(vertices, faces, [0.0, 0.0, 1.0], centre, normals)
     if kind == "axis":
-        return field_rotation(vertices, faces, _vector(arg, spec), centre)
+        return field_rotation(vertices, faces, _vector(arg, spec), centre, normals)
     if kind == "curvature":
         return field_principal_curvature(vertices, faces, arg)
     import xatlas
@@ -172,7 +178,7 @@ def surface_lic_values(mesh, texture, step_mm: float, base=None) -> np.ndarray:
             f"{len(vertices):,} vertices are {taps:.3g} noise samples, more than {LIC_MAX_TAPS:.0e} "
             f"(about a minute); texture.length_mm = {texture.length_mm * LIC_MAX_TAPS / taps:.3g} fits"
         )
-    field = field_on_mesh(texture.field, mesh, base)
+    field = field_on_mesh(lic_field(texture), mesh, base)
     return lic_surface(
         vertices,
         faces,

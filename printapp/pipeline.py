@@ -315,6 +315,7 @@ def run_design(
                 "grid": grid,
                 "sq_um": round(float(np.std(relief.patch.heights_mm)) * 1000.0, 4),
                 "softened_vertices": relief.softened_vertices,
+                "frame": relief.frame.as_dict() if relief.frame is not None else None,
             },
             "printer": {
                 "name": profile.name,

@@ -22,8 +22,9 @@ from printapp.mesh import (
     slab_from_heightfield,
 )
 from printapp.texture import (
-    evaluate_texture,
+    FrameSummary,
     evaluate_texture_grid,
+    evaluate_texture_on_mesh,
     normalise_peak_to_valley,
     relief_heightfield,
 )
@@ -44,6 +45,8 @@ class Relief:
     """For mesh bases: the refined mesh before displacement (same faces as ``mesh``)."""
     softened_vertices: int = 0
     """For mesh bases: vertices whose relief was lowered so that no triangle folds."""
+    frame: FrameSummary | None = None
+    """For a stretched scn, fbm or turbulence on a mesh: the tangent frames it followed."""
 
 
 def check_tile_memory(design: Design) -> None:
@@ -85,6 +88,7 @@ def build_relief(design: Design, base: trimesh.Trimesh | None = None) -> Relief:
     assert isinstance(design.base, MeshBase)
     if base is None:
         base = load_closed_mesh(design.base.path, design.base.scale)
+    frame = None
     if texture.kind == "lic":
         # The smeared noise varies on the scale of its features across the streamlines:
         # two vertices per feature resolve it.
@@ -96,19 +100,20 @@ def build_relief(design: Design, base: trimesh.Trimesh | None = None) -> Relief:
         # finer than the printer's pixel is wasted.
         edge = max(texture.feature_size_mm / 4.0, pitch)
         refined = refine_to_edge_length(base, edge, _edge_setting(texture.feature_size_mm / 4.0, pitch, 4.0))
-        raw = evaluate_texture(np.asarray(refined.vertices), texture, pitch_mm=edge)
+        raw, frame = evaluate_texture_on_mesh(refined, texture, pitch_mm=edge, base=base)
     lo, hi = float(raw.min()), float(raw.max())
     mesh, softened = displace_along_normals(
         refined, normalise_peak_to_valley(raw, design.relief.amplitude_mm)
     )
     # A flat patch of the same texture on the mesh's value-to-height scale, so that its
     # slopes are the mesh's (for a mesh-only lic field, a constant field: the same slope
-    # statistics up to a rotation).
+    # statistics up to a rotation; a framed noise is stretched along angle_deg there, the
+    # same random field in law, up to a rotation, as it is on the surface).
     side = _PATCH_FEATURES * max(texture.feature_size_mm, texture.length_mm if texture.kind == "lic" else 0.0)
     n = max(3, min(1024, round(side / pitch) + 1))
     step = side / (n - 1)
     patch_texture = texture
-    if texture.kind == "lic" and not is_tile_field(texture.field):
+    if texture.kind == "lic" and texture.field is not None and not is_tile_field(texture.field):
         patch_texture = texture.model_copy(update={"field": "constant:0"})
     values = evaluate_texture_grid(np.arange(n) * step, np.arange(n) * step, patch_texture, step)
     scale = design.relief.amplitude_mm / (hi - lo) if hi > lo else 0.0
@@ -117,6 +122,7 @@ def build_relief(design: Design, base: trimesh.Trimesh | None = None) -> Relief:
         patch=HeightField((values - lo) * scale, step, step),
         undisplaced=refined,
         softened_vertices=softened,
+        frame=frame,
     )
 
 

@@ -5,14 +5,16 @@ from __future__ import annotations
 import contextlib
 import math
 from collections.abc import Iterator
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from noise.heightfield import HeightField
 from printapp.design import Design, Texture, TileBase
 from printapp.errors import DesignError
-from printapp.texture_kinds import stretch_to_noise_units, texture_kind, vein_sign
+from printapp.texture_kinds import stretch_field, stretch_to_noise_units, texture_kind, vein_sign
 
 # The design key behind each name the noise kernels complain about.
 _DESIGN_KEY_OF_KERNEL_NAME = {
@@ -51,6 +53,109 @@ def evaluate_texture(points_mm: np.ndarray, texture: Texture, pitch_mm: float | 
     pitch = None if pitch_mm is None else pitch_mm / texture.feature_size_mm
     with _kernel_errors_as_design_keys():
         return kind.points(stretch_to_noise_units(points_mm, texture), texture, pitch)
+
+
+@dataclass(frozen=True)
+class FrameSummary:
+    """The tangent frames a stretched noise followed on a mesh, for the manifest and the CLI."""
+
+    field: str
+    """The field spec the stretch followed (the design's, or ``constant:ANGLE`` from angle_deg)."""
+    onb: str
+    """The orthonormal basis used where the field gives no direction."""
+    blend_radius_mm: float
+    """Radius over which the stretch fades to isotropic around singular vertices (mm)."""
+    singular_vertices: int
+    """Vertices where the field vanishes or turns about a triangle: isotropic noise there."""
+    blended_vertices: int
+    """Vertices within the blend radius of a singular one (the singular ones included)."""
+    vertices: int
+
+    def as_dict(self) -> dict[str, Any]:
+        return {
+            "field": self.field,
+            "onb": self.onb,
+            "blend_radius_mm": round(self.blend_radius_mm, 6),
+            "singular_vertices": self.singular_vertices,
+            "blended_vertices": self.blended_vertices,
+            "vertices": self.vertices,
+        }
+
+
+def texture_frames(mesh, texture: Texture, base=None):
+    """The tangent frames a stretched texture follows on ``mesh`` (mm), and their summary.
+
+    Each vertex's frame is its angle-weighted normal and the field
+    (:func:`printapp.texture_kinds.stretch_field`) projected into its tangent plane,
+    isotropic around the field's singular points over ``frame_blend_mm`` (default
+    ``stretch * feature_size_mm / 2``), with the ONB ``texture.onb`` there
+    (:func:`noise.frames.surface_frames`). ``base``: the mesh ``mesh`` was refined from
+    (image fields are laid on it).
+
+    Returns
+    -------
+    (noise.frames.SurfaceFrames, FrameSummary)
+    """
+    from noise.frames import angle_weighted_normals, surface_frames
+    from printapp.fields import field_on_mesh
+
+    spec = stretch_field(texture)
+    radius = texture.frame_blend_mm
+    if radius is None:
+        radius = 0.5 * texture.stretch * texture.feature_size_mm
+    vertices = np.asarray(mesh.vertices)
+    faces = np.asarray(mesh.faces)
+    normals = angle_weighted_normals(vertices, faces)
+    frames = surface_frames(
+        vertices,
+        faces,
+        field_on_mesh(spec, mesh, base, normals),
+        blend_radius=radius,
+        method=texture.onb,
+        normals=normals,
+    )
+    summary = FrameSummary(
+        field=spec,
+        onb=texture.onb,
+        blend_radius_mm=float(radius),
+        singular_vertices=frames.singular_count,
+        blended_vertices=int(np.count_nonzero(frames.blend < 1.0)),
+        vertices=len(vertices),
+    )
+    return frames, summary
+
+
+def evaluate_texture_in_frames(
+    points_mm: np.ndarray, frames, texture: Texture, pitch_mm: float
+) -> np.ndarray:
+    """Raw values of a stretched scn, fbm or turbulence at ``points_mm``, along ``frames``' tangents.
+
+    The framed counterpart of :func:`evaluate_texture` (:mod:`noise.framed`): the noise is
+    ``texture.stretch`` times longer along each point's tangent than across it, blended
+    to isotropic where ``frames.blend`` falls to 0.
+    """
+    kind = texture_kind(texture.kind)
+    if kind.framed is None:
+        raise ValueError(f"{kind.name} textures do not follow tangent frames")
+    return kind.framed(
+        np.asarray(points_mm) / texture.feature_size_mm, frames, texture, pitch_mm / texture.feature_size_mm
+    )
+
+
+def evaluate_texture_on_mesh(
+    mesh, texture: Texture, pitch_mm: float, base=None
+) -> tuple[np.ndarray, FrameSummary | None]:
+    """Raw texture values at the vertices of ``mesh`` (a trimesh.Trimesh, mm), and the frames followed.
+
+    A stretched scn, fbm or turbulence follows the surface (:func:`texture_frames`,
+    :func:`evaluate_texture_in_frames`). Without a stretch, and for marble, the noise is
+    evaluated at the vertices as on a tile, and no frame is returned.
+    """
+    vertices = np.asarray(mesh.vertices)
+    if texture_kind(texture.kind).framed is None or texture.stretch == 1.0:
+        return evaluate_texture(vertices, texture, pitch_mm=pitch_mm), None
+    frames, summary = texture_frames(mesh, texture, base)
+    return evaluate_texture_in_frames(vertices, frames, texture, pitch_mm), summary
 
 
 def normalise_peak_to_valley(values: np.ndarray, amplitude_mm: float) -> np.ndarray:

@@ -35,7 +35,9 @@ class TextureParams(Protocol):
     high: int
     stretch: float
     angle_rad: float
-    field: str
+    field: str | None
+    frame_blend_mm: float | None
+    onb: str
     length_mm: float
     vein_angle_rad: float
     vein_period_mm: float
@@ -46,6 +48,7 @@ class TextureParams(Protocol):
 
 PointsFn = Callable[[np.ndarray, TextureParams, float | None], np.ndarray]
 GridFn = Callable[[np.ndarray, np.ndarray, TextureParams, float | None], np.ndarray]
+FramedFn = Callable[[np.ndarray, object, TextureParams, float | None], np.ndarray]
 
 
 @dataclass(frozen=True)
@@ -70,6 +73,12 @@ class TextureKind:
     unit_range : bool
         Values lie in [0, 1] (greys and palettes map 0..1); else they are stretched from
         their minimum to their maximum.
+    framed : callable or None
+        ``framed(pts, frames, texture, min_pitch)``: values at points in noise units,
+        stretched by ``texture.stretch`` along each point's tangent in ``frames`` (a
+        :class:`noise.frames.SurfaceFrames`, blended to isotropic around its singular
+        points); None where a kind does not follow tangent frames (marble keeps its veins'
+        world direction; lic follows its field by itself).
     """
 
     name: str
@@ -78,6 +87,7 @@ class TextureKind:
     points: PointsFn | None
     grid: GridFn
     unit_range: bool = False
+    framed: FramedFn | None = None
 
 
 def _noise():  # noqa: ANN202
@@ -128,6 +138,14 @@ def _scn_grid(
     return _noise().sparse_convolution_grid(*_grid_axes(x_mm, y_mm, texture), **_common(texture))
 
 
+def _scn_framed(pts: np.ndarray, frames, texture: TextureParams, min_pitch: float | None) -> np.ndarray:  # noqa: ANN001
+    from noise.framed import sparse_convolution_framed
+
+    return sparse_convolution_framed(
+        pts, frames.tangent, frames.normal, stretch=texture.stretch, blend=frames.blend, **_common(texture)
+    )
+
+
 def _fbm_points(pts: np.ndarray, texture: TextureParams, min_pitch: float | None) -> np.ndarray:
     return _noise().fbm(
         pts,
@@ -152,6 +170,23 @@ def _fbm_grid(
     )
 
 
+def _fbm_framed(pts: np.ndarray, frames, texture: TextureParams, min_pitch: float | None) -> np.ndarray:  # noqa: ANN001
+    from noise.framed import fbm_framed
+
+    return fbm_framed(
+        pts,
+        frames.tangent,
+        frames.normal,
+        stretch=texture.stretch,
+        blend=frames.blend,
+        octaves=texture.octaves,
+        lacunarity=texture.lacunarity,
+        H=texture.H,
+        min_pitch=min_pitch,
+        **_common(texture),
+    )
+
+
 def _turbulence_points(pts: np.ndarray, texture: TextureParams, min_pitch: float | None) -> np.ndarray:
     return _noise().turbulence(
         pts, low=texture.low, high=texture.high, min_pitch=min_pitch, **_common(texture)
@@ -166,6 +201,24 @@ def _turbulence_grid(
         low=texture.low,
         high=texture.high,
         min_pitch=_noise_pitch(texture, pitch_mm),
+        **_common(texture),
+    )
+
+
+def _turbulence_framed(
+    pts: np.ndarray, frames, texture: TextureParams, min_pitch: float | None
+) -> np.ndarray:  # noqa: ANN001
+    from noise.framed import turbulence_framed
+
+    return turbulence_framed(
+        pts,
+        frames.tangent,
+        frames.normal,
+        stretch=texture.stretch,
+        blend=frames.blend,
+        low=texture.low,
+        high=texture.high,
+        min_pitch=min_pitch,
         **_common(texture),
     )
 
@@ -191,7 +244,7 @@ def _lic_grid(
     x_mm: np.ndarray, y_mm: np.ndarray, texture: TextureParams, pitch_mm: float | None
 ) -> np.ndarray:
     from noise.lic import lic2d
-    from printapp.fields import LIC_MAX_TAPS, field_on_grid
+    from printapp.fields import LIC_MAX_TAPS, field_on_grid, lic_field
 
     values = _noise().sparse_convolution_grid(
         x_mm / texture.feature_size_mm, y_mm / texture.feature_size_mm, **_common(texture)
@@ -205,7 +258,7 @@ def _lic_grid(
             f"length: {length_px:.6g}-pixel streamlines over {len(x_mm)} x {len(y_mm)} pixels are {taps:.3g} "
             f"noise samples, more than {LIC_MAX_TAPS:.0e} (about a minute); at most {fitting:.3g} fits"
         )
-    u, v = field_on_grid(texture.field, x_mm, y_mm)
+    u, v = field_on_grid(lic_field(texture), x_mm, y_mm)
     return lic2d(u, v, values, length=length_px)
 
 
@@ -221,6 +274,7 @@ TEXTURE_KINDS: dict[str, TextureKind] = {
             (),
             _scn_points,
             _scn_grid,
+            framed=_scn_framed,
         ),
         TextureKind(
             "fbm",
@@ -228,6 +282,7 @@ TEXTURE_KINDS: dict[str, TextureKind] = {
             _OCTAVES,
             _fbm_points,
             _fbm_grid,
+            framed=_fbm_framed,
         ),
         TextureKind(
             "turbulence",
@@ -235,6 +290,7 @@ TEXTURE_KINDS: dict[str, TextureKind] = {
             _BAND,
             _turbulence_points,
             _turbulence_grid,
+            framed=_turbulence_framed,
         ),
         TextureKind(
             "lic",
@@ -269,6 +325,18 @@ def texture_kind(name: str) -> TextureKind:
     if name not in TEXTURE_KINDS:
         raise ValueError(f"expected a texture kind, one of {', '.join(TEXTURE_KIND_NAMES)}, got {name!r}")
     return TEXTURE_KINDS[name]
+
+
+def stretch_field(texture: TextureParams) -> str:
+    """The field a stretched scn, fbm or turbulence follows on a mesh: the design's, else ``angle``'s.
+
+    Without a field, ``angle_deg`` keeps its tile meaning on a mesh: the world direction at
+    that angle in the x-y plane, projected into each tangent plane (``constant:ANGLE``,
+    as for lic), so a stretch never goes without a direction.
+    """
+    if texture.field is not None:
+        return texture.field
+    return f"constant:{math.degrees(texture.angle_rad):.12g}"
 
 
 def stretch_to_noise_units(points_mm: np.ndarray, texture: TextureParams) -> np.ndarray:

@@ -135,6 +135,9 @@ def choose_variant(
             "(several times slower). Install Debian's libllvm19 for llvm_ad_rgb.",
         )
     mi.set_variant(choice.variant)
+    # Mitsuba's C++ logger writes warnings straight to stdout, where they would mix with a
+    # command's output (and with JSON); printapp reports what matters itself.
+    mi.set_log_level(mi.LogLevel.Error)
     if tuple(search_dirs) == _LLVM_DIRS:
         _chosen = choice
     return choice

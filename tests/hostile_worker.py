@@ -19,6 +19,8 @@ import sys
 import traceback
 
 LIMIT_BYTES = int(os.environ.get("PRINTAPP_FUZZ_AS_LIMIT", 4 << 30))
+MARK = "@@printapp-hostile@@ "
+"""Prefix of the worker's answers: libraries below may print to stdout too."""
 
 
 def main() -> None:
@@ -29,7 +31,7 @@ def main() -> None:
     from printapp.cli import app
 
     runner = CliRunner()
-    print(json.dumps({"ready": True}), flush=True)
+    print(MARK + json.dumps({"ready": True}), flush=True)
     for line in sys.stdin:
         case = json.loads(line)
         memory.set_budget(None)
@@ -52,7 +54,7 @@ def main() -> None:
                 "traceback": True,
                 "exception": repr(exc),
             }
-        print(json.dumps(answer), flush=True)
+        print(MARK + json.dumps(answer), flush=True)
 
 
 if __name__ == "__main__":

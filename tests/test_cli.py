@@ -285,10 +285,18 @@ def test_every_example_builds_and_passes_verification(tmp_path, example):
     from printapp.design import load_design
     from printapp.pipeline import run_design
 
-    outcome = run_design(load_design(ROOT / "examples" / example), tmp_path, quiet=True, render=False)
+    design = load_design(ROOT / "examples" / example)
+    outcome = run_design(design, tmp_path, quiet=True, render=False)
     assert outcome.passed, outcome.reasons
     assert outcome.manifest["watertight"] and outcome.manifest["manifold"]
     assert (tmp_path / "model.stl").exists()
+    # A stretched scn, fbm or turbulence on a mesh reports the tangent frames it followed.
+    frame = outcome.manifest["relief"]["frame"]
+    framed = design.base.shape == "mesh" and design.texture.kind != "lic" and design.texture.stretch != 1
+    assert (frame is not None) == framed
+    if framed:
+        assert frame["field"] == (design.texture.field or frame["field"])
+        assert 0 <= frame["singular_vertices"] <= frame["blended_vertices"] <= frame["vertices"]
 
 
 def test_texture_lic_and_field_errors(tmp_path):
@@ -335,15 +343,28 @@ def test_lic_streaks_follow_the_field_on_a_tile():
     assert rough.anisotropy > 2.0
 
 
-def test_bench_frames(tmp_path):
-    result = printapp("bench", "frames", "--repeats", "1", "-o", tmp_path)
-    assert result.returncode == 0, result.stderr
-    rows = {
-        (r["method"], r["dtype"]): r
-        for r in json.loads((tmp_path / "bench.json").read_text())["frames"]["rows"]
-    }
+def test_bench_frames(tmp_path, monkeypatch):
+    # In process, on a small tube and two stretches: the stage's full size (a 10^6-vertex tube,
+    # six stretches, three seeds) takes minutes, and is what `printapp bench frames` runs.
+    import printapp.bench.frames as stage
+    from printapp.bench import run_bench
+
+    monkeypatch.setattr(stage, "TUBE_VERTICES", 60_000)
+    monkeypatch.setattr(stage, "STRETCHES", (1.0, 6.0))
+    monkeypatch.setattr(stage, "SEEDS", (1,))
+    run_bench(["frames"], tmp_path, repeats=1)
+    report = json.loads((tmp_path / "bench.json").read_text())["frames"]
+    rows = {(r["method"], r["dtype"]): r for r in report["rows"]}
     assert rows[("duff", "float32")]["max_error"] < 1e-6
     assert rows[("frisvad", "float32")]["max_error"] > 1e-3
+    costs = report["framed_vs_flat"]
+    assert [c["field"].split(" (")[0] for c in costs] == ["along the axis", "around it", "oblique"]
+    assert all(c["framed_ns_per_sample"] > 0 and c["flat_ns_per_sample"] > 0 for c in costs)
+    isotropic, stretched = report["anisotropy"]
+    assert isotropic["noise_ratio"] == pytest.approx(1.0, rel=0.15)
+    assert stretched["noise_ratio"] == pytest.approx(6.0, rel=0.15)
+    assert stretched["worst_angle_error_deg"] < 5.0
+    assert (tmp_path / "frames.png").stat().st_size > 1000
 
 
 def test_slice_command_writes_an_archive_and_a_png_stack(tmp_path):
@@ -407,6 +428,19 @@ def test_displace_repairs_and_writes_obj_with_material(tmp_path):
     assert "mtllib teapot.mtl" in text and "\nvn " in text
     mesh = trimesh.load(out, force="mesh")
     assert mesh.is_watertight
+
+
+def test_displace_stretches_the_noise_along_the_field(tmp_path):
+    out = tmp_path / "cylinder.stl"
+    result = printapp(
+        "displace", ROOT / "examples" / "cylinder.stl", "--amplitude-mm", "0.08", "--feature-size-mm", "1.5",
+        "--stretch", "5", "--field", "direction:1,0,0", "-o", out,
+    )  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    assert "stretched 5x along direction:1,0,0 in each vertex's tangent frame" in result.stdout
+    singular = int(result.stdout.split(" singular vertices")[0].rsplit(";", 1)[1].replace(",", ""))
+    assert singular > 1000  # the ends, where the axis (x) has no direction in the surface
+    assert trimesh.load(out).is_watertight
 
 
 def test_displace_writes_ply_and_refuses_open_meshes(tmp_path):

@@ -53,14 +53,20 @@ class Worker:
         assert json.loads(self._read(120))["ready"]
 
     def _read(self, timeout: float) -> str:
+        """The worker's next answer; any other line on its stdout (a library's log) is skipped."""
+        import time
+
         assert self.process is not None and self.process.stdout is not None
-        ready, _, _ = select.select([self.process.stdout], [], [], timeout)
-        if not ready:
-            raise TimeoutError
-        line = self.process.stdout.readline()
-        if not line:
-            raise ConnectionError
-        return line
+        deadline = time.monotonic() + timeout
+        while True:
+            ready, _, _ = select.select([self.process.stdout], [], [], max(0.0, deadline - time.monotonic()))
+            if not ready:
+                raise TimeoutError
+            line = self.process.stdout.readline()
+            if not line:
+                raise ConnectionError
+            if line.startswith("@@printapp-hostile@@ "):
+                return line.removeprefix("@@printapp-hostile@@ ")
 
     def run(self, args: list[str], cwd: Path, timeout: float = 120) -> dict:
         assert self.process is not None and self.process.stdin is not None

@@ -121,7 +121,12 @@ def displace(
     feature_size_mm: Annotated[float, typer.Option(help="Size of one noise cell (mm).")] = 2.0,
     seed: Annotated[int, typer.Option(help="Random seed.")] = 0,
     octaves: Annotated[int, typer.Option(help="fbm: octaves.")] = 4,
-    field: Annotated[str, typer.Option(help="lic: direction field (see README).")] = "swirl",
+    field: Annotated[
+        str, typer.Option(help="Direction field (see README): lic's streamlines, the stretch of the others.")
+    ] = "swirl",
+    stretch: Annotated[
+        float, typer.Option(help="scn, fbm, turbulence: features this many times longer along --field.")
+    ] = 1.0,
     length_mm: Annotated[float, typer.Option(help="lic: streamline half-length (mm).")] = 2.0,
     scale: Annotated[float, typer.Option(help="mm per unit of the mesh file (25.4 for inches).")] = 1.0,
     printer: Annotated[str, typer.Option(help="Printer whose pixel pitch bounds the detail.")] = "prusa-sl1",
@@ -142,6 +147,7 @@ def displace(
             seed=seed,
             octaves=octaves,
             field=field,
+            stretch=stretch,
             length_mm=length_mm,
             scale=scale,
             printer=printer,
@@ -156,6 +162,13 @@ def displace(
         warn(
             f"the relief was lowered at {result.softened_vertices:,} vertices "
             "where it would have folded thin or tightly curved triangles"
+        )
+    if result.frame is not None:
+        frame = result.frame
+        out.print(
+            f"stretched {stretch:g}x along {frame.field} in each vertex's tangent frame; "
+            f"{frame.singular_vertices:,} singular vertices (the field vanishes or turns there: isotropic), "
+            f"blended over {frame.blend_radius_mm:g} mm"
         )
     solid = result.solid
     out.print(

@@ -88,7 +88,9 @@ def _f1_f2_point(
 
 
 @njit(cache=True, nogil=True)
-def _cellular_kernel(points: np.ndarray, key: np.uint64, jitter: float, f1: np.ndarray, f2: np.ndarray) -> None:
+def _cellular_kernel(
+    points: np.ndarray, key: np.uint64, jitter: float, f1: np.ndarray, f2: np.ndarray
+) -> None:
     # Points in a row often share a cell: its 5 x 5 neighbourhood of feature points is
     # computed once and kept until the cell changes (the result is the same either way).
     block = np.empty((5, 5, 2))

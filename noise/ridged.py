@@ -13,7 +13,8 @@ The pieces, each after its source:
   ``w_i = clamp(gain * s_(i-1), 0, 1)`` is the previous octave's weighted signal
   ``s_(i-1) = w_(i-1) r(d_(i-1))`` (``w_0 = 1``): fine ridges grow only beside coarse
   ones, so veins branch; where the weight falls to 0.001 a point's sum stops, as
-  Musgrave's loop does (so finer octaves are computed only near veins). Musgrave's ``(offset - |n|)^2`` is ``r`` with ``sharpness = 2``
+  Musgrave's loop does (so finer octaves are computed only near veins). Musgrave's
+  ``(offset - |n|)^2`` is ``r`` with ``sharpness = 2``
   and ``width = offset``, clamped at zero beyond ``offset`` (Musgrave's squares negative
   values back up into spurious bumps). The sum is divided by the sum of the octave
   weights, so values lie in [0, 1].
@@ -77,10 +78,7 @@ def _ridged_octave(
     for k in range(active.size):
         j = active[k]
         u = 1.0 - distances[k] / width
-        if u > 0.0:
-            s = u * u if sharpness == 2.0 else u**sharpness
-        else:
-            s = 0.0
+        s = (u * u if sharpness == 2.0 else u**sharpness) if u > 0.0 else 0.0
         if not first:
             s *= min(max(gain * previous[j], 0.0), 1.0)
         total[j] += weight * s
@@ -100,7 +98,14 @@ def _check_cascade(width: float, sharpness: float, gain: float) -> None:
 
 
 def ridged_cascade(
-    basis, n: int, *, octaves: int, width: float, sharpness: float = 2.0, gain: float = 2.0, weights: np.ndarray
+    basis,
+    n: int,
+    *,
+    octaves: int,
+    width: float,
+    sharpness: float = 2.0,
+    gain: float = 2.0,
+    weights: np.ndarray,
 ) -> np.ndarray:
     """Musgrave's ridged multifractal over a basis evaluated only where it still counts.
 
@@ -218,7 +223,7 @@ def domain_warp(
 
 
 def _octave_count(octaves: int, lacunarity: float, cell: float, min_pitch: float | None) -> int:
-    """Octaves whose cells (``cell / lacunarity^i`` noise units) span at least two samples of ``min_pitch``."""
+    """Octaves whose cells (``cell / lacunarity^i`` noise units) span two samples of ``min_pitch`` or more."""
     if min_pitch is None:
         return octaves
     kept = 1

@@ -18,6 +18,7 @@ evaluated with the exact noise.
 from __future__ import annotations
 
 import math
+
 import numpy as np
 from numba import njit
 
@@ -80,7 +81,13 @@ def exact_sampler(seed: int, impulses: int = 30, cell_seed: str = "hash") -> Sam
 
 @njit(cache=True, nogil=True)
 def _bilinear(
-    table: np.ndarray, points: np.ndarray, inv_step: float, scale: float, sx: float, sy: float, out: np.ndarray
+    table: np.ndarray,
+    points: np.ndarray,
+    inv_step: float,
+    scale: float,
+    sx: float,
+    sy: float,
+    out: np.ndarray,
 ) -> None:
     mask = np.int64(table.shape[0] - 1)  # the side is a power of two: wrapping is a mask
     for k in range(points.shape[0]):

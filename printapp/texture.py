@@ -106,7 +106,8 @@ def write_texture_from_file(path: Path, out: Path, size: int, width_mm: float | 
     """Write the [texture] of a design or fragment file as an image of ``size`` px over ``width_mm``.
 
     ``.png`` gets the colours of its palette (8-bit sRGB, row 0 at the top), ``.npy`` the
-    texture's values, as a design's relief takes them (sunk veins negative). The square starts at the origin, with
+    texture's values, as a design's relief takes them (sunk veins negative). The square starts at the
+    origin, with
     pixel centres at ``(i + 1/2) width / size``, as ``printapp fit`` synthesised it; the
     width defaults to the design's tile width (20 mm for a fragment). Returns a one-line
     summary.

@@ -46,7 +46,7 @@ class TextureParams(Protocol):
     vein_scale_mm: float
     vein_octaves: int
     vein_gain: float
-    vein_H: float
+    vein_H: float  # noqa: N815 - Musgrave's H, as fBm's
     vein_width: float
     vein_warp: float
     vein_layers: int
@@ -55,7 +55,7 @@ class TextureParams(Protocol):
     vein_layer_weight: float
     vein_fade: float
     ground_weight: float
-    ground_H: float
+    ground_H: float  # noqa: N815 - fBm's H
 
 
 PointsFn = Callable[[np.ndarray, TextureParams, float | None], np.ndarray]
@@ -333,7 +333,7 @@ TEXTURE_KINDS: dict[str, TextureKind] = {
         ),
         TextureKind(
             "veined",
-            "branching veins: layers of domain-warped ridged multifractal (noise or cellular cracks) over fBm",
+            "branching veins: domain-warped ridged multifractal (noise or cellular cracks) over fBm",
             (
                 "vein_network",
                 "vein_scale_mm",

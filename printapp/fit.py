@@ -69,7 +69,7 @@ METHOD = {
     "values": "1-Wasserstein distance of each sRGB channel's distribution, averaged (0..1)",
     "lines": "RMS of per scale (1, 2, 4, 8 px) and polarity: log10 mean, 90th and 99th percentile of the "
     "Hessian line strength, and the correlation of strengths across neighbouring scales",
-    "layout": "RMS of the half-octave log spectra of the finest three line-strength maps (each over its mean)",
+    "layout": "RMS of the half-octave log spectra of the three finest line-strength maps, each over its mean",
     "ratio": "each measure over the photo's own (left half against right half; the fit half against the "
     "photo's other half), both floored at what is too small to see",
     "score": "geometric mean over the measures of min(1, 1 / ratio), times min(1, (side / 128)^2)",
@@ -232,7 +232,7 @@ def synthesise(texture: Texture, shape: tuple[int, int], scale_mm: float) -> np.
 
 
 def reported_params(model: Model, values: dict[str, Any], texture: Texture, photo: Photo) -> dict[str, Any]:
-    """Parameters in the photo's own pixels (before downsampling), in mm and degrees, as metrics.json gives them."""
+    """Parameters in the photo's own pixels (before downsampling), mm and degrees: metrics.json's."""
     px = photo.downscale
     out: dict[str, Any] = {"sign": values["sign"]}
     feature_px = values["feature_px"] * px
@@ -282,7 +282,9 @@ def reported_params(model: Model, values: dict[str, Any], texture: Texture, phot
     return out
 
 
-def _check(model: str, budget: int, max_side: int, scale_mm_per_px: float | None, seed: int, workers: int) -> None:
+def _check(
+    model: str, budget: int, max_side: int, scale_mm_per_px: float | None, seed: int, workers: int
+) -> None:
     if model not in ("auto", *MODELS):
         raise PrintappError(f"--model: expected auto, {', '.join(MODELS)}; got '{model}'")
     if not (isinstance(budget, int) and budget >= 8):
@@ -353,7 +355,6 @@ def fit_photo(
     with stage("read", "reading the photo"):
         photo = source if isinstance(source, Photo) else read_photo(source, max_side)
         lum = photo.lum
-        side = min(lum.shape)
         original_scale = scale_mm_per_px if scale_mm_per_px is not None else 20.0 / photo.original_px[0]
         scale_mm = original_scale * photo.downscale  # mm per analysed pixel
         constant = float(lum.std()) < 0.5 / 255.0
@@ -468,7 +469,9 @@ def _fit_synthesised(
     return found.values, found.objective, found.evaluations, found.trace
 
 
-def _with_sign(m: Model, values: dict[str, Any], lum: np.ndarray, seed: int, state: dict[str, Any]) -> dict[str, Any]:
+def _with_sign(
+    m: Model, values: dict[str, Any], lum: np.ndarray, seed: int, state: dict[str, Any]
+) -> dict[str, Any]:
     """The sign (high values bright or dark) that brings the coarse level closest."""
     from printapp.fit_measures import match_values
 

@@ -1,4 +1,4 @@
-"""What ``printapp fit`` compares: four measures of how a texture looks, each against the photo's own variation.
+"""What ``printapp fit`` compares: five measures of how a texture looks, each against the photo's own.
 
 Two samples of one stochastic texture differ at every pixel, so a fit is judged by
 statistics, the ones that carry what a person sees in a texture:
@@ -112,7 +112,9 @@ def line_statistics(strengths: np.ndarray, scale: float) -> np.ndarray:
         for p in range(2):
             a, b = flat[s, p], flat[s + 1, p]
             sa, sb = a.std(), b.std()
-            correlations.append(0.0 if sa <= 0 or sb <= 0 else float(np.mean((a - a.mean()) * (b - b.mean())) / (sa * sb)))
+            correlations.append(
+                0.0 if sa <= 0 or sb <= 0 else float(np.mean((a - a.mean()) * (b - b.mean())) / (sa * sb))
+            )
     return np.concatenate([means.ravel(), tails.ravel(), np.asarray(correlations)])
 
 
@@ -215,7 +217,9 @@ def distances(a: Stats, b: Stats) -> Distances:
         raise ValueError(f"expected statistics of images of the same shape, got {a.shape} and {b.shape}")
     na, nb = len(a.values), len(b.values)
     channels = max(na, nb)
-    values = np.mean([wasserstein_1d(a.values[min(c, na - 1)], b.values[min(c, nb - 1)]) for c in range(channels)])
+    values = np.mean(
+        [wasserstein_1d(a.values[min(c, na - 1)], b.values[min(c, nb - 1)]) for c in range(channels)]
+    )
     return Distances(
         spectrum=_rms(a.spectrum, b.spectrum),
         orientation=_rms(a.orientation, b.orientation),
@@ -228,7 +232,8 @@ def distances(a: Stats, b: Stats) -> Distances:
 def ratios(fit: Distances, photo: Distances) -> dict[str, float]:
     """Per measure, the fit's distance over the photo's halves' distance (both floored at :data:`FLOORS`)."""
     return {
-        name: max(getattr(fit, name), getattr(FLOORS, name)) / max(getattr(photo, name), getattr(FLOORS, name))
+        name: max(getattr(fit, name), getattr(FLOORS, name))
+        / max(getattr(photo, name), getattr(FLOORS, name))
         for name in MEASURES
     }
 
@@ -257,7 +262,9 @@ def half_stats(
     out = []
     for rows, cols in cut:
         out.append(
-            Stats.of(lum[rows, cols], None if rgb is None else rgb[rows, cols], lines=strengths[:, :, rows, cols])
+            Stats.of(
+                lum[rows, cols], None if rgb is None else rgb[rows, cols], lines=strengths[:, :, rows, cols]
+            )
         )
     return out[0], out[1]
 

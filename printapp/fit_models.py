@@ -71,10 +71,12 @@ class Grid:
 
     @classmethod
     def of(cls, shape: tuple[int, int], analysed_shape: tuple[int, int], origin=(0.0, 0.0)) -> Grid:
-        """A ``shape`` image covering the analysed image (or a window of it at ``origin`` if the same pitch)."""
+        """A ``shape`` image covering the analysed image (moved to ``origin``, in analysed px)."""
         ny, nx = shape
         sy, sx = analysed_shape[0] / ny, analysed_shape[1] / nx
-        return cls(origin[1] + (np.arange(nx) + 0.5) * sx, origin[0] + (np.arange(ny) + 0.5) * sy, max(sx, sy))
+        return cls(
+            origin[1] + (np.arange(nx) + 0.5) * sx, origin[0] + (np.arange(ny) + 0.5) * sy, max(sx, sy)
+        )
 
     def points(self) -> np.ndarray:
         xx, yy = np.meshgrid(self.xs, self.ys)
@@ -197,11 +199,15 @@ class Model:
         raise NotImplementedError
 
 
-def _octave_sum(grid: Grid, sampler, feature: float, octaves: int, lacunarity: float, weight: float, absolute: bool):
+def _octave_sum(
+    grid: Grid, sampler, feature: float, octaves: int, lacunarity: float, weight: float, absolute: bool
+):
     pts = grid.points() / feature
     n = min(octaves, _octaves_at(feature, grid.pitch_px, lacunarity))
     i = np.arange(n)
-    return sampler.octave_sum(pts, 0, lacunarity**i, weight**i, np.zeros((n, 2)), absolute).reshape(grid.shape)
+    return sampler.octave_sum(pts, 0, lacunarity**i, weight**i, np.zeros((n, 2)), absolute).reshape(
+        grid.shape
+    )
 
 
 class FBM(Model):
@@ -212,7 +218,9 @@ class FBM(Model):
 
     def field(self, values, grid, sampler, seed):
         lac = values["lacunarity"]
-        return _octave_sum(grid, sampler, values["feature_px"], values["octaves"], lac, lac ** -values["H"], False)
+        return _octave_sum(
+            grid, sampler, values["feature_px"], values["octaves"], lac, lac ** -values["H"], False
+        )
 
     def texture_fields(self, values):
         return {
@@ -234,7 +242,12 @@ class Turbulence(Model):
         return _octave_sum(grid, sampler, values["feature_px"], values["octaves"], 2.0, 0.5, True)
 
     def texture_fields(self, values):
-        return {"kind": "turbulence", "feature_size_mm": values["feature_px"], "low": 0, "high": int(values["octaves"]) - 1}
+        return {
+            "kind": "turbulence",
+            "feature_size_mm": values["feature_px"],
+            "low": 0,
+            "high": int(values["octaves"]) - 1,
+        }
 
 
 def _octaves_at(feature_px: float, pitch_px: float, lacunarity: float = 2.0) -> int:
@@ -246,7 +259,7 @@ def _octaves_at(feature_px: float, pitch_px: float, lacunarity: float = 2.0) -> 
 
 
 class Marble(Model):
-    """Perlin's marble: its direction and period from the photo in closed form (:class:`Hints`), the rest searched.
+    """Perlin's marble: direction and period from the photo, closed form (:class:`Hints`); the rest searched.
 
     Both are first-order properties of the spectrum that the synthesis measures resolve
     less well than the closed forms do (the orientation bands are 22.5 degrees wide; the

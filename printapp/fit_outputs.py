@@ -84,7 +84,8 @@ def side_by_side(images: list[np.ndarray], labels: list[str]) -> bytes:
 def preview_png(result: FitResult) -> bytes:
     """The photo and the fitted synthesis side by side, with a caption."""
     return side_by_side(
-        [result.photo.rgb, result.chosen.rgb], ["photo", f"{result.chosen.name} fit, score {result.score:.2f}"]
+        [result.photo.rgb, result.chosen.rgb],
+        ["photo", f"{result.chosen.name} fit, score {result.score:.2f}"],
     )
 
 
@@ -112,6 +113,67 @@ def write_outputs(
     return atomic_write_files(outputs)
 
 
+def surface_toml(surface) -> str:
+    """A measured surface's fragment: [base], [relief] and [texture] that print the look-alike relief."""
+    import tomli_w
+
+    from printapp.design import to_file_units
+
+    design = surface.design
+    m, f = surface.measured, surface.fitted
+    header = [
+        f"# printapp fit: an fBm relief with the ISO 25178 statistics of {Path(surface.path).name}",
+        f"# ({surface.heights_mm.shape[1]} x {surface.heights_mm.shape[0]} samples at "
+        f"{surface.pitch_mm * 1000:.6g} µm): measured -> fitted",
+        f"#   Sq {m.sq_um:.4g} -> {f.sq_um:.4g} µm, Sdq {m.sdq:.4g} -> {f.sdq:.4g}, "
+        f"Sal {m.sal_um:.4g} -> {f.sal_um:.4g} µm, Str {m.str_ratio:.3g} -> {f.str_ratio:.3g}, "
+        f"Std {m.std_deg:.4g} -> {f.std_deg:.4g} deg",
+        *(f"# warning: {w}" for w in surface.warnings),
+        f"# The relief below is the fitted one magnified {surface.magnification:g} times (lengths and",
+        "# heights: Sq and Sal grow by that factor, the slopes (Sdq), and so the gloss, stay).",
+        "# Print it:   printapp design THIS_FILE; to change the magnification, multiply width_mm, depth_mm,",
+        "#             pitch_mm, amplitude_mm and feature_size_mm by the same factor.",
+        '#             [texture] from = "THIS_FILE" takes the texture alone.',
+        "",
+    ]
+    texture = design.texture.model_dump(mode="python")
+    data = {
+        "base": {k: getattr(design.base, k) for k in ("shape", "width_mm", "depth_mm")},
+        "relief": {"amplitude_mm": design.relief.amplitude_mm, "pitch_mm": design.relief.pitch_mm},
+        "texture": {k: texture[k] for k in fragment_keys(design.texture)},
+    }
+    return "\n".join(header) + tomli_w.dumps(to_file_units(data))
+
+
+def surface_preview_png(surface) -> bytes:
+    """The measured heights and the fitted relief side by side (grey, each from its minimum to maximum)."""
+
+    def grey(z: np.ndarray) -> np.ndarray:
+        span = float(np.ptp(z)) or 1.0
+        return np.repeat(((z - z.min()) / span)[..., None], 3, axis=-1)
+
+    return side_by_side(
+        [grey(surface.heights_mm), grey(surface.relief_mm)],
+        ["measured heights", f"fitted fBm relief, Sq {surface.fitted.sq_um:.3g} um"],
+    )
+
+
+def write_surface_outputs(
+    surface, toml_path: Path, preview_path: Path | None = None, json_path: Path | None = None
+) -> list[Path]:
+    """Write a surface's fragment (and preview, metrics): all written first, then renamed into place."""
+    import json
+
+    from printapp.exporters import atomic_write_files
+
+    outputs: list[tuple[Path, bytes]] = [(toml_path, surface_toml(surface).encode())]
+    if preview_path is not None:
+        outputs.append((preview_path, surface_preview_png(surface)))
+    if json_path is not None:
+        outputs.append((json_path, (json.dumps(surface.metrics(), indent=2) + "\n").encode()))
+    return atomic_write_files(outputs)
+
+
 def summary_table(result: FitResult):
     """A Rich table: each measure as a ratio to the photo's own variation, fit beside random phase."""
     from rich.table import Table
@@ -129,7 +191,10 @@ def summary_table(result: FitResult):
     m, r = metrics["measures"], metrics["ratios"]
     for key in m["fit"]:
         table.add_row(
-            key, f"{m['fit'][key]:.4g}", f"{m['random_phase'][key]:.4g}", f"{r['fit'][key]:.2f}",
+            key,
+            f"{m['fit'][key]:.4g}",
+            f"{m['random_phase'][key]:.4g}",
+            f"{r['fit'][key]:.2f}",
             f"{r['random_phase'][key]:.2f}",
         )
     return table
@@ -157,9 +222,10 @@ def fit_any(
     budget: int | None = None,
     size: int = 512,
     workers: int | None = None,
+    magnify: float | None = None,
     timer=None,
 ) -> tuple[list[Any], list[str], list[Path]]:
-    """``printapp fit``: a photo, or a measured height map by its suffix; returns (lines to print, warnings, files).
+    """``printapp fit`` on a photo or a height map (by its suffix): (lines to print, warnings, files written).
 
     Raises
     ------
@@ -168,17 +234,23 @@ def fit_any(
     """
     _check_outputs(out_path, preview, json_out)
     if source.suffix.lower() in HEIGHTMAP_SUFFIXES:
-        from printapp.fit_surface import fit_surface, write_surface_outputs
+        from printapp.fit_surface import fit_surface
 
         if model not in ("auto", "fbm"):
             raise PrintappError(f"--model: a measured surface is fitted by fbm (or auto), got '{model}'")
         if scale_mm_per_px is not None:
-            raise PrintappError("--scale-mm-per-px: a height map carries its own pitch (give --pitch-mm for .npy)")
-        surface = fit_surface(source, pitch_mm=pitch_mm, seed=seed, max_side=size, timer=timer)
+            raise PrintappError(
+                "--scale-mm-per-px: a height map carries its own pitch (give --pitch-mm for .npy)"
+            )
+        surface = fit_surface(
+            source, pitch_mm=pitch_mm, seed=seed, max_side=size, magnify=magnify, timer=timer
+        )
         written = write_surface_outputs(surface, out_path, preview, json_out)
         return surface.summary_lines(), surface.warnings, written
     if pitch_mm is not None:
-        raise PrintappError(f"--pitch-mm: only for height maps ({', '.join(HEIGHTMAP_SUFFIXES)}), not {source.name}")
+        raise PrintappError(
+            f"--pitch-mm: only for height maps ({', '.join(HEIGHTMAP_SUFFIXES)}), not {source.name}"
+        )
     from printapp.fit import DEFAULT_BUDGET, fit_photo
 
     result = fit_photo(

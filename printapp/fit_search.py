@@ -132,9 +132,7 @@ def window_level(lum: np.ndarray, strengths: np.ndarray | None = None) -> Level 
     from printapp.fit_measures import spectra_of_power
 
     radial, orientation = spectra_of_power(np.mean(powers, axis=0))
-    layouts = [
-        layout_spectra(strengths[:, :, r : r + WINDOW, c : c + WINDOW]) for r, c in tiles
-    ]
+    layouts = [layout_spectra(strengths[:, :, r : r + WINDOW, c : c + WINDOW]) for r, c in tiles]
     layout = np.log10(np.mean([10.0**x for x in layouts], axis=0))
     target = Stats(
         (WINDOW, WINDOW), radial, orientation, (), line_statistics(strengths, float(lum.std())), layout
@@ -169,7 +167,9 @@ class ModelFit:
 class Objective:
     """The objective of a model over levels, evaluated for whole populations by a thread pool."""
 
-    def __init__(self, model: Model, levels: list[Level], sampler, seed: int, pool: ThreadPoolExecutor) -> None:
+    def __init__(
+        self, model: Model, levels: list[Level], sampler, seed: int, pool: ThreadPoolExecutor
+    ) -> None:
         self.model, self.levels, self.sampler, self.seed, self.pool = model, levels, sampler, seed, pool
         self.trace = SearchTrace()
         self.best_value = math.inf

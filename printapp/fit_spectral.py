@@ -5,7 +5,8 @@ octave wide from 2 cycles per image (where the Hann window still resolves) to 0.
 per pixel, and every bin weighs the same: each octave counts equally, so the coarse
 scales (few frequency samples, all of the visible structure) are not drowned by the
 fine ones (most samples, little to see); only bins of fewer than 64 samples weigh in
-proportion to their samples, since their log-power scatters by more than 0.05 decades. The model's expected binned periodogram
+proportion to their samples, since their log-power scatters by more than 0.05 decades. The
+model's expected binned periodogram
 (:func:`noise.spectra.expected_spectrum_operator`: window and aliasing included) is
 the sum over its octaves of the noise's measured PSD scaled to each octave's cell
 ``c`` (``c^2 S(f c)``, times the octave's weight squared): octaves are uncorrelated at
@@ -27,9 +28,14 @@ from typing import Any
 
 import numpy as np
 
-from noise.spectra import expected_spectrum_operator, interpolate_psd, polar_bins, polar_spectrum, scn_slice_psd
+from noise.spectra import (
+    expected_spectrum_operator,
+    interpolate_psd,
+    polar_bins,
+    polar_spectrum,
+    scn_slice_psd,
+)
 from printapp.fit_models import MAX_OCTAVES, Param
-
 
 RELIABLE_SAMPLES = 64
 """Bins of at least this many frequency samples weigh the same; sparser (coarse) bins in proportion."""

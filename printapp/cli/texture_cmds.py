@@ -138,6 +138,10 @@ def fit(
     pitch_mm: Annotated[
         float | None, typer.Option(help="Height maps in .npy: the sample spacing (mm; heights in mm).")
     ] = None,
+    magnify: Annotated[
+        float | None,
+        typer.Option(min=1e-6, help="Height maps: magnify the relief (default: up to the printer's pixel)."),
+    ] = None,
     preview: Annotated[
         Path | None, typer.Option(help="Write the photo and the synthesis side by side (.png).")
     ] = None,
@@ -179,6 +183,7 @@ def fit(
             budget=budget,
             size=size,
             workers=workers,
+            magnify=magnify,
             timer=timer,
         )
     for line in lines:

@@ -43,20 +43,9 @@ def _fft_size(n: int) -> int:
     return best
 
 
-def hessian_eigenvalues(image: np.ndarray, sigmas: tuple[float, ...]) -> np.ndarray:
-    """Scale-normalised Hessian eigenvalues ``(l_1, l_2)``, ``|l_1| >= |l_2|``, at each scale.
-
-    Parameters
-    ----------
-    image : (ny, nx) float array
-    sigmas : tuple of float
-        Gaussian scales (px), each > 0.
-
-    Returns
-    -------
-    (len(sigmas), 2, ny, nx) float64 array: ``sigma^2`` times the eigenvalues of the
-    Hessian of the Gaussian-smoothed image (rows are the y axis, columns x).
-    """
+def _hessian(
+    image: np.ndarray, sigmas: tuple[float, ...], directions: bool
+) -> tuple[np.ndarray, np.ndarray | None]:
     arr = np.asarray(image, dtype=np.float64)
     if arr.ndim != 2 or min(arr.shape) < 4:
         raise ValueError(f"image: expected a 2-D array of at least 4 x 4, got shape {arr.shape}")
@@ -77,6 +66,7 @@ def hessian_eigenvalues(image: np.ndarray, sigmas: tuple[float, ...]) -> np.ndar
     wx = (2.0 * math.pi * fft.rfftfreq(mx)[None, :]).astype(np.float32)
     w2 = wy * wy + wx * wx
     out = np.empty((len(sigmas), 2, ny, nx))
+    along = np.empty((len(sigmas), ny, nx)) if directions else None
     for k, sigma in enumerate(sigmas):
         smooth = spectrum * np.exp(np.float32(-0.5 * sigma * sigma) * w2)
         s2 = np.float32(sigma * sigma)
@@ -89,6 +79,36 @@ def hessian_eigenvalues(image: np.ndarray, sigmas: tuple[float, ...]) -> np.ndar
         big = np.abs(a) >= np.abs(b)
         out[k, 0] = np.where(big, a, b)
         out[k, 1] = np.where(big, b, a)
+        if along is not None:
+            # The eigenvector of a lies at phi; a line runs across its big eigenvalue's eigenvector.
+            phi = 0.5 * np.arctan2(2.0 * hxy, hxx - hyy)
+            along[k] = np.mod(np.where(big, phi + 0.5 * math.pi, phi), math.pi)
+    return out, along
+
+
+def hessian_eigenvalues(image: np.ndarray, sigmas: tuple[float, ...]) -> np.ndarray:
+    """Scale-normalised Hessian eigenvalues ``(l_1, l_2)``, ``|l_1| >= |l_2|``, at each scale.
+
+    Parameters
+    ----------
+    image : (ny, nx) float array
+    sigmas : tuple of float
+        Gaussian scales (px), each > 0.
+
+    Returns
+    -------
+    (len(sigmas), 2, ny, nx) float64 array: ``sigma^2`` times the eigenvalues of the
+    Hessian of the Gaussian-smoothed image (rows are the y axis, columns x).
+    """
+    return _hessian(image, sigmas, False)[0]
+
+
+def _strengths(eig: np.ndarray) -> np.ndarray:
+    l1, l2 = eig[:, 0], eig[:, 1]
+    across = np.abs(l1) - np.abs(l2)
+    out = np.empty_like(eig)
+    out[:, 0] = np.where(l1 < 0, across, 0.0)
+    out[:, 1] = np.where(l1 > 0, across, 0.0)
     return out
 
 
@@ -99,10 +119,19 @@ def line_strengths(image: np.ndarray, sigmas: tuple[float, ...]) -> np.ndarray:
     -------
     (len(sigmas), 2, ny, nx) float64 array: ``[:, 0]`` bright lines, ``[:, 1]`` dark lines.
     """
-    eig = hessian_eigenvalues(image, sigmas)
-    l1, l2 = eig[:, 0], eig[:, 1]
-    across = np.abs(l1) - np.abs(l2)
-    out = np.empty_like(eig)
-    out[:, 0] = np.where(l1 < 0, across, 0.0)
-    out[:, 1] = np.where(l1 > 0, across, 0.0)
-    return out
+    return _strengths(hessian_eigenvalues(image, sigmas))
+
+
+def line_field(image: np.ndarray, sigmas: tuple[float, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`line_strengths` and the direction a line at each pixel runs along.
+
+    Returns
+    -------
+    strengths : (len(sigmas), 2, ny, nx) float64 array
+    along : (len(sigmas), ny, nx) float64 array
+        Angle (rad, [0, pi), from +x towards +y) of the Hessian's eigenvector of the
+        smaller eigenvalue: the direction along a line (across it lies the larger one's).
+    """
+    eig, along = _hessian(image, sigmas, True)
+    assert along is not None
+    return _strengths(eig), along

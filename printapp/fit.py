@@ -42,10 +42,10 @@ from printapp.fit_measures import (
     Distances,
     Stats,
     combined_ratio,
-    distances,
     half_stats,
     halves_distance,
     line_maps,
+    own_distance,
     ratios,
 )
 from printapp.fit_models import MODELS, SYNTHESISED, Hints, Model, make_model
@@ -70,8 +70,10 @@ METHOD = {
     "lines": "RMS of per scale (1, 2, 4, 8 px) and polarity: log10 mean, 90th and 99th percentile of the "
     "Hessian line strength, and the correlation of strengths across neighbouring scales",
     "layout": "RMS of the half-octave log spectra of the three finest line-strength maps, each over its mean",
-    "ratio": "each measure over the photo's own (left half against right half; the fit half against the "
-    "photo's other half), both floored at what is too small to see",
+    "continuity": "RMS over the finest two scales and both polarities of log10(chance / 1 %) that a pixel in "
+    "the top 1 % of line strength has one 4, 8, 16, 32 px along its line's direction too",
+    "ratio": "each measure over the photo's own (left half against right, bottom against top; the fit's "
+    "halves against the photo's other halves), both floored at what is too small to see",
     "score": "geometric mean over the measures of min(1, 1 / ratio), times min(1, (side / 128)^2)",
     "random_phase": "the photo's Fourier moduli with random phases (Galerne, Gousseau & Morel 2011)",
     "fit": "fbm, turbulence: expected spectrum in quarter-octave bins (no synthesis), grid + Nelder-Mead; "
@@ -358,11 +360,11 @@ def fit_photo(
         original_scale = scale_mm_per_px if scale_mm_per_px is not None else 20.0 / photo.original_px[0]
         scale_mm = original_scale * photo.downscale  # mm per analysed pixel
         constant = float(lum.std()) < 0.5 / 255.0
-        strengths = line_maps(lum)
-        photo_halves_stats = half_stats(lum, photo.rgb, strengths)
-        photo_halves = distances(*photo_halves_stats)
-        hints = Hints.of(lum, strengths)
-        search_state: dict[str, Any] = {"strengths": strengths}
+        maps = line_maps(lum)
+        photo_halves_stats = half_stats(lum, photo.rgb, maps)
+        photo_halves = own_distance(photo_halves_stats)
+        hints = Hints.of(lum, maps.strengths)
+        search_state: dict[str, Any] = {"maps": maps}
     names = list(MODELS) if model == "auto" else [model]
     reports: dict[str, ModelReport] = {}
     spectral: dict[str, tuple[dict[str, Any], float, int]] = {}
@@ -448,7 +450,7 @@ def _search_setup(lum: np.ndarray, seed: int, state: dict[str, Any]) -> tuple[li
         from printapp.fit_search import coarse_level, window_level
 
         levels = [coarse_level(lum)]
-        window = window_level(lum, state.get("strengths"))
+        window = window_level(lum, state.get("maps"))
         if window is not None:
             levels.append(window)
         table = NoiseTable(TABLE_PERIOD, seed)
@@ -486,7 +488,7 @@ def _report(
     m: Model,
     values: dict[str, Any],
     photo: Photo,
-    photo_halves_stats: tuple[Stats, Stats],
+    photo_halves_stats: tuple[Stats, ...],
     photo_halves: Distances,
     scale_mm: float,
     seed: int,

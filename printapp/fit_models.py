@@ -321,13 +321,13 @@ class Veined(Model):
     def params(self) -> list[Param]:
         side = self.side
         return [
-            Param("vein_px", 8.0, 2.0 * side, log=True),
+            Param("vein_px", 8.0, 0.5 * side, log=True),
             Param("warp", 0.0, 1.2),
             Param("width_u", 0.0, 1.0),
             Param("gain", 0.25, 6.0, log=True),
             Param("vein_H", 0.0, 1.5),
             Param("fade", 0.0, 2.0),
-            Param("ground_weight", 0.02, 4.0, log=True),
+            Param("ground_weight", 0.01, 0.6, log=True),
             Param("feature_px", 4.0, 2.0 * side, log=True),
             Param("H", -1.0, 1.0),
             Param("stretch", 1.0, 4.0, log=True),
@@ -350,7 +350,7 @@ class Veined(Model):
         """Networks of four cell sizes and two widths, on the ground the photo's spectrum suggests."""
         ground = self.hints.ground or {"feature_px": self.side / 8, "H": 0.5}
         out = []
-        for fraction in (1 / 8, 1 / 4, 1 / 2, 1.0):
+        for fraction in (1 / 16, 1 / 8, 1 / 4, 1 / 2):
             for width_u in (0.3, 0.6):
                 out.append(
                     {

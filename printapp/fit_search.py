@@ -4,8 +4,10 @@ Two levels look at the photo: the whole of it downsampled to about 128 px (the l
 scales: how big the veins' network is, where the ground's power sits) and 128 px windows
 at full resolution (the fine ones: how thin the veins are, the grain). The objective at
 a level sums the measures of :mod:`printapp.fit_measures` (spectrum, orientation, lines,
-layout; the values are matched exactly by construction), each over the photo's own
-variation at that level.
+layout, continuity), each over the photo's own variation at that level; the values are
+matched exactly over the whole image by construction, and at the coarse level their
+distributions in the halves are compared too (veins that fade in and out make halves
+that differ).
 
 1. **Scan** (coarse level): the starting points the photo suggests, then a scrambled
    Sobol sequence, for every discrete choice (network, sign).
@@ -29,9 +31,12 @@ import numpy as np
 
 from printapp.fit_measures import (
     FLOORS,
+    LineMaps,
     Stats,
+    continuity,
     distances,
     half_stats,
+    halves,
     layout_spectra,
     line_maps,
     line_scales,
@@ -45,7 +50,7 @@ COARSE_SIDE = 128
 """Longer side (px) of the coarse level."""
 WINDOW = 128
 """Side (px) of the fine level's full-resolution window."""
-OBJECTIVE_MEASURES = ("spectrum", "orientation", "lines", "layout")
+OBJECTIVE_MEASURES = ("spectrum", "orientation", "lines", "layout", "continuity")
 OPTIMISER_SEED = 20_251_202
 """The optimiser's own seed (Sobol scrambling, CMA-ES): fixed, whatever ``--seed`` is."""
 
@@ -76,24 +81,42 @@ class Level:
     sorted_lum: np.ndarray
     scales: tuple[float, ...] | None = None
     """Line filter scales (px); default those of the level's image size."""
+    half_values: tuple[np.ndarray, ...] = ()
+    """The photo's sorted values in its left, right, bottom and top halves at this level, if the
+    halves' value distributions are to be matched too (the whole image's is matched exactly)."""
+    values_spread: float = 1.0
 
     def synthesise(self, model: Model, values: dict[str, Any], sampler, seed: int) -> np.ndarray:
         return model.field(values, self.grid, sampler, seed)
 
     def cost(self, lum: np.ndarray) -> float:
         radial, orientation = spectra(lum)
-        strengths = line_maps(lum, self.scales)
-        lines = line_statistics(strengths, float(lum.std()))
-        stats = Stats(self.target.shape, radial, orientation, (), lines, layout_spectra(strengths))
+        maps = line_maps(lum, self.scales)
+        lines = line_statistics(maps.strengths, float(lum.std()))
+        stats = Stats(
+            self.target.shape,
+            radial,
+            orientation,
+            (),
+            lines,
+            layout_spectra(maps.strengths),
+            continuity(maps),
+        )
         d = distances_without_values(stats, self.target)
-        return sum(d[m] / self.spread[m] for m in OBJECTIVE_MEASURES)
+        total = sum(d[m] / self.spread[m] for m in OBJECTIVE_MEASURES)
+        if self.half_values:
+            mine = [np.sort(h, axis=None) for h in halves(lum)]
+            pairs = ((0, 1), (1, 0), (2, 3), (3, 2))
+            w1 = np.mean([np.mean(np.abs(mine[a] - self.half_values[b])) for a, b in pairs])
+            total += float(w1) / self.values_spread
+        return total
 
 
 def distances_without_values(a: Stats, b: Stats) -> dict[str, float]:
     """The objective's measures (all but the values, which matching makes equal)."""
     d = distances(
-        Stats(a.shape, a.spectrum, a.orientation, (np.zeros(1),), a.lines, a.layout),
-        Stats(b.shape, b.spectrum, b.orientation, (np.zeros(1),), b.lines, b.layout),
+        Stats(a.shape, a.spectrum, a.orientation, (np.zeros(1),), a.lines, a.layout, a.continuity),
+        Stats(b.shape, b.spectrum, b.orientation, (np.zeros(1),), b.lines, b.layout, b.continuity),
     )
     return {m: getattr(d, m) for m in OBJECTIVE_MEASURES}
 
@@ -103,18 +126,38 @@ def coarse_level(lum: np.ndarray) -> Level:
     shape = coarse_shape(lum.shape)
     small = downsample(lum, shape)
     target = Stats.of(small)
-    own = distances_without_values(*half_stats(small))
+    pieces = half_stats(small)
+    own = {
+        m: 0.5
+        * (
+            distances_without_values(pieces[0], pieces[1])[m]
+            + distances_without_values(pieces[2], pieces[3])[m]
+        )
+        for m in OBJECTIVE_MEASURES
+    }
     spread = {m: max(own[m], getattr(FLOORS, m)) for m in OBJECTIVE_MEASURES}
     grid = Grid.of(shape, lum.shape)
-    return Level(target, spread, grid, np.sort(small, axis=None))
+    sorted_halves = tuple(np.sort(h, axis=None) for h in halves(small))
+    own_values = 0.5 * (
+        float(np.mean(np.abs(sorted_halves[0] - sorted_halves[1])))
+        + float(np.mean(np.abs(sorted_halves[2] - sorted_halves[3])))
+    )
+    return Level(
+        target,
+        spread,
+        grid,
+        np.sort(small, axis=None),
+        half_values=sorted_halves,
+        values_spread=max(own_values, FLOORS.values),
+    )
 
 
-def window_level(lum: np.ndarray, strengths: np.ndarray | None = None) -> Level | None:
+def window_level(lum: np.ndarray, maps: LineMaps | None = None) -> Level | None:
     """128 px windows at full resolution (None for photos of at most 1.5 windows).
 
     The target averages the power of all the photo's windows (Welch) and takes the line
     statistics of the whole photo; the spread is the median distance of one window from it.
-    ``strengths`` are the photo's line strengths at :func:`line_scales` if already known.
+    ``maps`` are the photo's line maps at :func:`line_scales` if already known.
     """
     ny, nx = lum.shape
     if min(ny, nx) < WINDOW or max(ny, nx) <= 1.5 * WINDOW:
@@ -122,20 +165,25 @@ def window_level(lum: np.ndarray, strengths: np.ndarray | None = None) -> Level 
     from noise.spectra import periodogram
 
     scales = line_scales(lum.shape)
-    strengths = line_maps(lum, scales) if strengths is None else strengths
+    maps = line_maps(lum, scales) if maps is None else maps
     tiles = [(r, c) for r in range(0, ny - WINDOW + 1, WINDOW) for c in range(0, nx - WINDOW + 1, WINDOW)]
     powers, stats = [], []
     for r, c in tiles:
         window = lum[r : r + WINDOW, c : c + WINDOW]
         powers.append(periodogram(window))
-        stats.append(Stats.of(window, lines=strengths[:, :, r : r + WINDOW, c : c + WINDOW]))
+        stats.append(Stats.of(window, lines=maps.crop(slice(r, r + WINDOW), slice(c, c + WINDOW))))
     from printapp.fit_measures import spectra_of_power
 
     radial, orientation = spectra_of_power(np.mean(powers, axis=0))
-    layouts = [layout_spectra(strengths[:, :, r : r + WINDOW, c : c + WINDOW]) for r, c in tiles]
-    layout = np.log10(np.mean([10.0**x for x in layouts], axis=0))
+    layout = np.log10(np.mean([10.0**s.layout for s in stats], axis=0))
     target = Stats(
-        (WINDOW, WINDOW), radial, orientation, (), line_statistics(strengths, float(lum.std())), layout
+        (WINDOW, WINDOW),
+        radial,
+        orientation,
+        (),
+        line_statistics(maps.strengths, float(lum.std())),
+        layout,
+        continuity(maps),
     )
     spread = {
         m: max(float(np.median([distances_without_values(s, target)[m] for s in stats])), getattr(FLOORS, m))

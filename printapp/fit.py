@@ -465,8 +465,8 @@ def _fit_synthesised(
     from printapp.fit_search import search
 
     levels, table = _search_setup(lum, seed, state)
-    # The budget is the veins' (ten parameters); the marble searches three.
-    share = budget if m.name == "veined" else max(12, budget * len(m.params()) // 10)
+    # The budget is the veins' (nine parameters); the marble searches three.
+    share = budget if m.name == "veined" else max(8, budget * len(m.params()) // 18)
     found = search(m, levels, table, seed, share, workers, starts=m.starts())
     return found.values, found.objective, found.evaluations, found.trace
 

@@ -63,19 +63,34 @@ def line_scales(shape: tuple[int, int]) -> tuple[float, ...]:
     return (1.0, 2.0, 4.0, 8.0) if min(shape) >= 256 else (1.0, 2.0, 4.0)
 
 
-@functools.lru_cache(maxsize=32)
-def _radial_bins(shape: tuple[int, int]) -> PolarBins:
-    return polar_bins(shape, f_min=1.0 / min(shape), f_max=0.5, bins_per_octave=2.0, n_angular=1)
+class _Bins(NamedTuple):
+    bins: PolarBins
+    keep: np.ndarray
+    """The frequency samples inside the bins (flat indices) ..."""
+    which: np.ndarray
+    """... and their bins."""
+
+
+def _with_kept(bins: PolarBins) -> _Bins:
+    keep = np.flatnonzero(bins.index >= 0)
+    return _Bins(bins, keep, bins.index[keep])
 
 
 @functools.lru_cache(maxsize=32)
-def _band_bins(shape: tuple[int, int]) -> PolarBins:
-    return polar_bins(shape, f_min=2.0 / min(shape), f_max=0.5, bins_per_octave=1.0, n_angular=N_ANGLES)
+def _radial_bins(shape: tuple[int, int]) -> _Bins:
+    return _with_kept(polar_bins(shape, f_min=1.0 / min(shape), f_max=0.5, bins_per_octave=2.0, n_angular=1))
 
 
-def _binned_log(power: np.ndarray, bins: PolarBins) -> np.ndarray:
-    keep = bins.index >= 0
-    sums = np.bincount(bins.index[keep], weights=power.ravel()[keep], minlength=bins.counts.size)
+@functools.lru_cache(maxsize=32)
+def _band_bins(shape: tuple[int, int]) -> _Bins:
+    return _with_kept(
+        polar_bins(shape, f_min=2.0 / min(shape), f_max=0.5, bins_per_octave=1.0, n_angular=N_ANGLES)
+    )
+
+
+def _binned_log(power: np.ndarray, binned: _Bins) -> np.ndarray:
+    bins = binned.bins
+    sums = np.bincount(binned.which, weights=power.ravel()[binned.keep], minlength=bins.counts.size)
     counts = bins.counts.ravel()
     floor = 1e-12 * max(float(power.mean()), 1e-300)
     mean = np.where(counts > 0, sums / np.maximum(counts, 1), np.nan)
@@ -171,13 +186,14 @@ def continuity(maps: LineMaps) -> np.ndarray:
         for p in range(2):
             r = maps.strengths[s, p]
             on = r > np.quantile(r, CONTINUITY_QUANTILE)
+            starts = [on & (channel == k) for k in range(4)]
             row = []
             for d in CONTINUITY_LAGS:
                 hits, count = 0, 0
                 for k, (sx, sy) in enumerate(_DIRECTIONS):
                     step = d / math.hypot(sx, sy)
                     dx, dy = int(round(sx * step)), int(round(sy * step))
-                    start = _overlap(on & (channel == k), dx, dy, 0)
+                    start = _overlap(starts[k], dx, dy, 0)
                     hits += int(np.count_nonzero(start & _overlap(on, dx, dy, 1)))
                     count += int(np.count_nonzero(start))
                 row.append(hits / count if count else 0.0)
@@ -189,6 +205,8 @@ def continuity(maps: LineMaps) -> np.ndarray:
 def _overlap(a: np.ndarray, dx: int, dy: int, which: int) -> np.ndarray:
     """The part of ``a`` that overlaps ``a`` shifted by (dx, dy): the unshifted (0) or shifted (1) view."""
     ny, nx = a.shape
+    if abs(dx) >= nx or abs(dy) >= ny:
+        return a[:0, :0]
     y0, y1 = max(0, -dy), min(ny, ny - dy)
     x0, x1 = max(0, -dx), min(nx, nx - dx)
     if which == 0:

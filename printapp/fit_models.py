@@ -325,7 +325,6 @@ class Veined(Model):
             Param("warp", 0.0, 1.2),
             Param("width_u", 0.0, 1.0),
             Param("gain", 0.25, 6.0, log=True),
-            Param("vein_H", 0.0, 1.5),
             Param("fade", 0.0, 2.0),
             Param("ground_weight", 0.01, 0.6, log=True),
             Param("feature_px", 4.0, 2.0 * side, log=True),
@@ -344,36 +343,28 @@ class Veined(Model):
         values["width"] = float(math.exp(math.log(lo) + values["width_u"] * math.log(hi / lo)))
         values["angle"] = self.hints.angle
         values["sharpness"] = 2.0  # Musgrave's square: the width alone sets how thin veins are
+        values["vein_H"] = 1.0  # Musgrave's H: finer veins weigh as much less as they are finer
         return values
 
     def starts(self) -> list[dict[str, Any]]:
-        """Networks of four cell sizes and two widths, on the ground the photo's spectrum suggests."""
+        """Marble-like networks: three cell sizes (an eighth, a quarter and two fifths of the photo) and two
+        widths, moderately warped and faded, a faint ground with the photo's own spectrum (fBm fit)."""
         ground = self.hints.ground or {"feature_px": self.side / 8, "H": 0.5}
-        out = []
-        for fraction in (1 / 16, 1 / 8, 1 / 4, 1 / 2):
-            for width_u in (0.3, 0.6):
-                out.append(
-                    {
-                        "vein_px": self.side * fraction,
-                        "warp": 0.5,
-                        "width_u": width_u,
-                        "gain": 2.0,
-                        "vein_H": 1.0,
-                        "fade": 0.5,
-                        "ground_weight": 0.15,
-                        "feature_px": min(max(ground["feature_px"], 4.0), 2.0 * self.side),
-                        "H": min(max(ground["H"], -1.0), 1.0),
-                        "stretch": 1.0,
-                    }
-                )
-        return out
-
-    def encode(self, values):
-        if "width_u" not in values:
-            lo, hi = self.WIDTH[values["network"]]
-            width_u = math.log(values["width"] / lo) / math.log(hi / lo)
-            values = {**values, "width_u": min(max(width_u, 0.0), 1.0)}
-        return super().encode(values)
+        return [
+            {
+                "vein_px": self.side * fraction,
+                "warp": 0.6,
+                "width_u": width_u,
+                "gain": 1.5,
+                "fade": 0.5,
+                "ground_weight": 0.18,
+                "feature_px": min(max(ground["feature_px"], 4.0), 2.0 * self.side),
+                "H": min(max(ground["H"], -1.0), 1.0),
+                "stretch": 1.1,
+            }
+            for fraction in (1 / 8, 1 / 4, 2 / 5)
+            for width_u in (0.45, 0.65)
+        ]
 
     def texture_fields(self, values):
         return {

@@ -156,8 +156,11 @@ class NoiseTable(Sampler):
             raise ValueError(f"extent: expected a period in [1, 256] noise units, got {extent!r}")
         self.m = 1 << int(math.ceil(math.log2(extent / _STEP)))
         self.extent = self.m * _STEP
+        import threading
+
         super().__init__(seed)
         self._tables: dict[int, np.ndarray] = {}
+        self._lock = threading.Lock()
         self._filter: np.ndarray | None = None
 
     def _amplitude(self) -> np.ndarray:
@@ -174,16 +177,24 @@ class NoiseTable(Sampler):
         return self._filter
 
     def table(self, stream: int) -> np.ndarray:
-        """The tabulated values of stream ``stream`` ((m, m), rows along y), computed on first use."""
-        if stream not in self._tables:
-            white = np.random.default_rng(stream_seed(self.seed, stream)).standard_normal((self.m, self.m))
-            spectrum = np.fft.rfft2(white) * self._amplitude()
-            values = np.fft.irfft2(spectrum, s=(self.m, self.m))
-            self._tables[stream] = np.ascontiguousarray(values, dtype=np.float32)
-        return self._tables[stream]
+        """The tabulated values of stream ``stream`` ((m, m), rows along y), computed on first use
+        (by one thread: readers from several threads wait for it)."""
+        table = self._tables.get(stream)
+        if table is None:
+            with self._lock:
+                table = self._tables.get(stream)
+                if table is None:
+                    white = np.random.default_rng(stream_seed(self.seed, stream)).standard_normal(
+                        (self.m, self.m)
+                    )
+                    spectrum = np.fft.rfft2(white) * self._amplitude()
+                    values = np.fft.irfft2(spectrum, s=(self.m, self.m))
+                    table = np.ascontiguousarray(values, dtype=np.float32)
+                    self._tables[stream] = table
+        return table
 
     def prepare(self, streams: tuple[int, ...]) -> None:
-        """Compute the tables of ``streams`` now (before reading them from several threads)."""
+        """Compute the tables of ``streams`` now."""
         for stream in streams:
             self.table(stream)
 

@@ -17,7 +17,9 @@ Each measure is a ratio to the photo's own variation (its left half against its
 right half; 1 = as close to the photo as the photo is to itself). The score is the
 geometric mean over the measures of ``min(1, 1 / ratio)``, times ``min(1, (side / 128)^2)``
 for images too small to show their statistics; below :data:`LOW_SCORE` the fit comes
-with a warning that the model does not explain the image. ``auto`` keeps the best score.
+with a warning that the model does not explain the image. ``auto`` keeps the model whose
+worst measure is closest (a texture is as far from the photo as its worst measure),
+then the best score.
 Pixel-by-pixel measures (SSIM, PSNR) are not used: two samples of the same stochastic
 texture differ at every pixel.
 """
@@ -41,7 +43,6 @@ from printapp.fit_measures import (
     MEASURES,
     Distances,
     Stats,
-    combined_ratio,
     half_stats,
     halves_distance,
     line_maps,
@@ -51,6 +52,8 @@ from printapp.fit_measures import (
 from printapp.fit_models import MODELS, SYNTHESISED, Hints, Model, make_model
 from printapp.photo import LUMA, MIN_SIDE_PX, Photo, hex_colour, luminance_palette, read_photo
 
+STEP = math.log(1.02)
+"""Worst measures within 2 % of each other tie when ``auto`` chooses a model."""
 RELIABLE_SIDE_PX = 128
 """Images smaller than this have their score scaled down by the area ratio."""
 LOW_SCORE = 0.5
@@ -59,7 +62,6 @@ DEFAULT_BUDGET = 120
 """Objective evaluations of the veins' search (the marble's gets a share by its parameters)."""
 TABLE_PERIOD = 32.0
 """Period (noise cells) of the noise tables the search reads."""
-TABLE_STREAMS = (0, 1, 2, 3, 5, 6)
 QUANTILE_KNOTS = 64
 """Colours in a fitted palette (each at a quantile of the texture's values)."""
 METHOD = {
@@ -77,8 +79,9 @@ METHOD = {
     "score": "geometric mean over the measures of min(1, 1 / ratio), times min(1, (side / 128)^2)",
     "random_phase": "the photo's Fourier moduli with random phases (Galerne, Gousseau & Morel 2011)",
     "fit": "fbm, turbulence: expected spectrum in quarter-octave bins (no synthesis), grid + Nelder-Mead; "
-    "marble, veined: Sobol scan + CMA-ES on syntheses at 128 px, then CMA-ES with 128 px windows at full "
-    "resolution, noise from tables with its spectrum; values matched to the photo quantile by quantile",
+    "marble, veined: Sobol scan at 128 px, then CMA-ES at 128 px and on 128 px windows at full resolution, "
+    "noise from tables with its spectrum; veined: the three best points measured on the texture itself, "
+    "the best kept; values matched to the photo quantile by quantile",
 }
 
 
@@ -326,7 +329,8 @@ def fit_photo(
     ----------
     source : path or :class:`Photo`
     model : {"auto", "fbm", "turbulence", "marble", "veined"}
-        ``"auto"`` fits all and keeps the best score (ties: the simpler model).
+        ``"auto"`` fits all and keeps the one whose worst measure's ratio is smallest (then the best
+        score, then the simpler model).
     scale_mm_per_px : float, optional
         Millimetres per pixel of the original image, for the design fragment's lengths;
         default: the image's width spans a 20 mm tile.
@@ -381,7 +385,7 @@ def fit_photo(
             if constant:
                 values, objective, evaluations, trace = m.neutral(), math.nan, 0, []
             elif name in SYNTHESISED:
-                values, objective, evaluations, trace = _fit_synthesised(
+                values, objective, evaluations, trace, finalists = _fit_synthesised(
                     m, lum, seed, budget, workers, search_state
                 )
             else:
@@ -390,14 +394,24 @@ def fit_photo(
                 spectral[name] = fit_spectral(name, lum)
                 values, objective, evaluations = spectral[name]
                 values, trace = _with_sign(m, values, lum, seed, search_state), []
-            report = _report(m, values, photo, photo_halves_stats, photo_halves, scale_mm, seed)
+            if constant or name not in SYNTHESISED:
+                report = _report(m, values, photo, photo_halves_stats, photo_halves, scale_mm, seed)
+            else:
+                # The finalists measured on the texture itself: the one whose worst measure is best.
+                photo_stats = (photo_halves_stats, photo_halves)
+                candidates = [_report(m, v, photo, *photo_stats, scale_mm, seed) for _, v in finalists]
+                best = min(range(len(candidates)), key=lambda k: (max(candidates[k].ratios.values()), k))
+                report, objective = candidates[best], finalists[best][0]
             report.objective, report.evaluations, report.trace = objective, evaluations, trace
             report.seconds = time.perf_counter() - t0
             if constant:
                 report.score = 0.0
             reports[name] = report
-    chosen = max(
-        reports.values(), key=lambda r: (round(r.score, 3), -combined_ratio(r.ratios), -names.index(r.name))
+    # A texture is as far from the photo as its worst measure: a noise that misses the veins
+    # is wrong however close its spectrum. Ties (the worst measure within 2 %) go to the score.
+    chosen = min(
+        reports.values(),
+        key=lambda r: (round(math.log(max(r.ratios.values())) / STEP), -r.score, names.index(r.name)),
     )
     with stage("baseline", "random-phase baseline"):
         from noise.spectra import random_phase
@@ -453,22 +467,21 @@ def _search_setup(lum: np.ndarray, seed: int, state: dict[str, Any]) -> tuple[li
         window = window_level(lum, state.get("maps"))
         if window is not None:
             levels.append(window)
-        table = NoiseTable(TABLE_PERIOD, seed)
-        table.prepare(TABLE_STREAMS)
-        state["levels"], state["table"] = levels, table
+        state["levels"], state["table"] = levels, NoiseTable(TABLE_PERIOD, seed)
     return state["levels"], state["table"]
 
 
 def _fit_synthesised(
     m: Model, lum: np.ndarray, seed: int, budget: int, workers: int, state: dict[str, Any]
-) -> tuple[dict[str, Any], float, int, list]:
+) -> tuple[dict[str, Any], float, int, list, list]:
     from printapp.fit_search import search
 
     levels, table = _search_setup(lum, seed, state)
     # The budget is the veins' (nine parameters); the marble searches three.
     share = budget if m.name == "veined" else max(8, budget * len(m.params()) // 18)
     found = search(m, levels, table, seed, share, workers, starts=m.starts())
-    return found.values, found.objective, found.evaluations, found.trace
+    finalists = found.candidates if m.name == "veined" else found.candidates[:1]
+    return found.values, found.objective, found.evaluations, found.trace, finalists
 
 
 def _with_sign(

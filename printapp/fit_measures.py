@@ -291,10 +291,11 @@ class Distances:
 
 
 MEASURES = tuple(f.name for f in fields(Distances))
-FLOORS = Distances(spectrum=0.1, orientation=0.1, values=1.0 / 255.0, lines=0.05, layout=0.1, continuity=0.1)
+FLOORS = Distances(spectrum=0.1, orientation=0.1, values=2.0 / 255.0, lines=0.05, layout=0.1, continuity=0.1)
 """Differences too small to see: 12 % in amplitude (0.1 decades of power, 0.05 decades of line
 strength; about the contrast increment at which a difference between textures becomes
-visible, Legge & Foley 1980), one grey level in the values, 0.1 decades (26 %) in a chance of continuing."""
+visible, Legge & Foley 1980), two 8-bit grey levels in the values (about one just noticeable
+difference: sRGB's steps are about half of one), 0.1 decades (26 %) in a chance of continuing."""
 
 
 def _rms(a: np.ndarray, b: np.ndarray) -> float:

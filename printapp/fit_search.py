@@ -13,6 +13,10 @@ that differ).
    Sobol sequence, for every discrete choice (network, sign).
 2. **CMA-ES** (both levels; Hansen 2016, "The CMA Evolution Strategy: A Tutorial", the
    ``cma`` package) from the best scanned points.
+3. **Finalists**: the three best distinct points are handed back, to be measured on the
+   texture itself (exact noise, full resolution) by the caller, which keeps the best:
+   the search reads the noise from tables, so its ranking of near-equal points is a
+   ranking on another realisation of the noise.
 
 The optimiser's random numbers have a fixed seed of their own: the fit depends on
 ``--seed`` only through the noise it synthesises. Each population is evaluated by a pool
@@ -210,6 +214,8 @@ class ModelFit:
     objective: float
     evaluations: int
     trace: list[tuple[int, float]] = field(default_factory=list)
+    candidates: list[tuple[float, dict[str, Any]]] = field(default_factory=list)
+    """The best few distinct points (objective, values), best first: finalists for the exact measures."""
 
 
 class Objective:
@@ -222,6 +228,7 @@ class Objective:
         self.trace = SearchTrace()
         self.best_value = math.inf
         self.best: tuple[np.ndarray, dict[str, Any]] | None = None
+        self.seen: list[tuple[float, np.ndarray, dict[str, Any]]] = []
 
     def one(self, u: np.ndarray, choice: dict[str, Any]) -> float:
         values = self.model.decode(np.clip(u, 0.0, 1.0), choice)
@@ -236,6 +243,7 @@ class Objective:
         results = list(self.pool.map(lambda item: self.one(*item), points))
         for (u, choice), value in zip(points, results, strict=True):
             self.trace.evaluations += 1
+            self.seen.append((value, np.array(u, dtype=float), dict(choice)))
             if value < self.best_value:
                 self.best_value, self.best = value, (np.array(u, dtype=float), dict(choice))
         self.trace.best.append((self.trace.evaluations, self.best_value))
@@ -311,4 +319,28 @@ def search(
     u_best, c_best = objective.best
     trace = [(len(items) + n, v) for n, v in objective.trace.best]
     evaluations = len(items) + objective.trace.evaluations
-    return ModelFit(model, model.decode(u_best, c_best), objective.best_value, evaluations, trace)
+    return ModelFit(
+        model,
+        model.decode(u_best, c_best),
+        objective.best_value,
+        evaluations,
+        trace,
+        [(v, model.decode(u, c)) for v, u, c in finalists(objective.seen, FINALISTS)],
+    )
+
+
+FINALISTS = 3
+"""Distinct best points of a search that are measured exactly, on the texture that will be printed."""
+
+
+def finalists(
+    seen: list[tuple[float, np.ndarray, dict[str, Any]]], count: int, apart: float = 0.05
+) -> list[tuple[float, np.ndarray, dict[str, Any]]]:
+    """The ``count`` best points, each at least ``apart`` (in some unit-box coordinate) from better ones."""
+    out: list[tuple[float, np.ndarray, dict[str, Any]]] = []
+    for value, u, choice in sorted(seen, key=lambda item: item[0]):
+        if all(choice != c or np.max(np.abs(u - v)) > apart for _, v, c in out):
+            out.append((value, u, choice))
+        if len(out) == count:
+            break
+    return out

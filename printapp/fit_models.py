@@ -329,8 +329,19 @@ class Veined(Model):
             Param("ground_weight", 0.01, 0.6, log=True),
             Param("feature_px", 4.0, 2.0 * side, log=True),
             Param("H", -1.0, 1.0),
-            Param("stretch", 1.0, 4.0, log=True),
+            Param("stretch", 1.0, self.max_stretch(), log=True),
         ]
+
+    def max_stretch(self) -> float:
+        """The most the veins may be stretched: twice what the photo's coherence implies, plus 0.15.
+
+        Noise stretched ``e`` times has the structure tensor's coherence
+        ``c = (e^2 - 1) / (e^2 + 1)``, so a photo of coherence ``c`` is stretched about
+        ``sqrt((1 + c) / (1 - c))`` times.
+        """
+        c = min(max(self.hints.coherence, 0.0), 0.95)
+        implied = math.sqrt((1.0 + c) / (1.0 - c))
+        return min(1.15 + 2.0 * (implied - 1.0), 6.0)
 
     def choices(self):
         """Both networks; the sign the photo's strongest lines have (both where it cannot tell)."""
@@ -360,7 +371,7 @@ class Veined(Model):
                 "ground_weight": 0.18,
                 "feature_px": min(max(ground["feature_px"], 4.0), 2.0 * self.side),
                 "H": min(max(ground["H"], -1.0), 1.0),
-                "stretch": 1.1,
+                "stretch": min(1.1, self.max_stretch()),
             }
             for fraction in (1 / 8, 1 / 4, 2 / 5)
             for width_u in (0.45, 0.65)

@@ -430,7 +430,7 @@ def test_the_fitted_marble_example_prints(tmp_path):
     from printapp.pipeline import run_design
 
     design = load_design(ROOT / "examples" / "fitted_marble_tile.toml")
-    assert design.texture.kind == "marble" and design.texture.veins == "sunk"
+    assert design.texture.kind == "veined" and design.texture.veins == "sunk"
     assert design.texture.palette is not None
     # The example at a coarser pitch and on a smaller tile, without the path-traced preview.
     fast = design.model_copy(
@@ -443,7 +443,7 @@ def test_the_fitted_marble_example_prints(tmp_path):
     assert outcome.passed, outcome.reasons
     assert outcome.manifest["watertight"] and outcome.manifest["triangles"] > 10000
     resolved = (tmp_path / "out" / "design.resolved.toml").read_text()
-    assert 'kind = "marble"' in resolved and "from" not in resolved.split("[texture]")[1].split("[")[0]
+    assert 'kind = "veined"' in resolved and "from" not in resolved.split("[texture]")[1].split("[")[0]
 
 
 def test_fit_photo_refuses_bad_arguments():

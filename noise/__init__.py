@@ -3,12 +3,17 @@
 Pure numerics on arrays (numba kernels); no file I/O, no printing. Scattered points
 go through :func:`sparse_convolution`, :func:`fbm`, :func:`turbulence`,
 :func:`unit_noise` and :func:`veins`; regular grids through the faster ``*_grid``
-functions. Also here, as the lowest room: :class:`noise.heightfield.HeightField` (the
-type tiles are exchanged in), counter-based hashing (:mod:`noise.hashing`), tangent
+functions. Branching veins (:func:`vein_network`: Musgrave's ridged multifractal over
+noise or Worley's :func:`cellular` edges, :func:`domain_warp`) are in :mod:`noise.ridged`,
+with the noise tables fitting reads (:mod:`noise.tables`) and the line filters that
+measure veins (:mod:`noise.line_filters`). Also here, as the lowest room:
+:class:`noise.heightfield.HeightField` (the type tiles are exchanged in), counter-based hashing (:mod:`noise.hashing`), tangent
 frames (:mod:`noise.frames`), line integral convolution (:mod:`noise.lic`,
 :mod:`noise.surface`) and spectra (:mod:`noise.spectra`).
 """
 
+from noise.cellular import cellular
+from noise.ridged import domain_warp, vein_network
 from noise.scn import (
     CELL_SEED_MODES,
     fbm,
@@ -24,6 +29,8 @@ from noise.veins import veins, veins_grid
 
 __all__ = [
     "CELL_SEED_MODES",
+    "cellular",
+    "domain_warp",
     "fbm",
     "fbm_grid",
     "octaves_for_pitch",
@@ -32,6 +39,7 @@ __all__ = [
     "turbulence",
     "turbulence_grid",
     "unit_noise",
+    "vein_network",
     "veins",
     "veins_grid",
 ]

@@ -7,9 +7,9 @@ functions. Branching veins (:func:`vein_network`: Musgrave's ridged multifractal
 noise or Worley's :func:`cellular` edges, :func:`domain_warp`) are in :mod:`noise.ridged`,
 with the noise tables fitting reads (:mod:`noise.tables`) and the line filters that
 measure veins (:mod:`noise.line_filters`). Also here, as the lowest room:
-:class:`noise.heightfield.HeightField` (the type tiles are exchanged in), counter-based hashing (:mod:`noise.hashing`), tangent
-frames (:mod:`noise.frames`), line integral convolution (:mod:`noise.lic`,
-:mod:`noise.surface`) and spectra (:mod:`noise.spectra`).
+:class:`noise.heightfield.HeightField` (the type tiles are exchanged in), counter-based
+hashing (:mod:`noise.hashing`), tangent frames (:mod:`noise.frames`), line integral
+convolution (:mod:`noise.lic`, :mod:`noise.surface`) and spectra (:mod:`noise.spectra`).
 """
 
 from noise.cellular import cellular

@@ -389,13 +389,3 @@ def match_values(s: np.ndarray, sorted_target: np.ndarray, sign: float = 1.0) ->
     out = np.empty(n)
     out[order] = quantiles
     return out.reshape(np.shape(s))
-
-
-def unit_scale(values: np.ndarray) -> float:
-    """A robust scale of a set of values (their standard deviation, at least 1e-12)."""
-    return max(float(np.std(values)), 1e-12)
-
-
-def combined_ratio(r: dict[str, float]) -> float:
-    """The geometric mean of the measures' ratios."""
-    return math.exp(float(np.mean([math.log(v) for v in r.values()])))

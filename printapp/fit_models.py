@@ -156,11 +156,6 @@ def _peak_period(lum: np.ndarray, across: float) -> float:
     return float(min(max(1.0 / mean, 2.0), 4.0 * max(lum.shape)))
 
 
-def period_estimate(lum: np.ndarray, angle: float) -> float:
-    """:func:`_peak_period` across veins running along ``angle`` (rad)."""
-    return _peak_period(lum, angle + math.pi / 2)
-
-
 class Model:
     """A model: its searched parameters, discrete choices, field and design texture (lengths in px)."""
 

@@ -255,9 +255,12 @@ def _cma(objective: Objective, x0: np.ndarray, choice: dict[str, Any], sigma0: f
 
     n = x0.size
     popsize = 4 + int(3 * math.log(n))
+    # Its own generator, not numpy's global one (which cma's "seed" option would reseed).
+    rng = np.random.default_rng(OPTIMISER_SEED)
     options = {
         "bounds": [0.0, 1.0],
-        "seed": OPTIMISER_SEED,
+        "seed": np.nan,
+        "randn": lambda *shape: rng.standard_normal(shape),
         "popsize": popsize,
         "maxfevals": max(budget, popsize),
         "verbose": -9,

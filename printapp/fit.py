@@ -16,8 +16,9 @@ closest any stationary Gaussian texture comes on the spectrum).
 Each measure is a ratio to the photo's own variation (its left half against its
 right half; 1 = as close to the photo as the photo is to itself). The score is the
 geometric mean over the measures of ``min(1, 1 / ratio)``, times ``min(1, (side / 128)^2)``
-for images too small to show their statistics; below :data:`LOW_SCORE` the fit comes
-with a warning that the model does not explain the image. ``auto`` keeps the model whose
+for images too small to show their statistics; below :data:`LOW_SCORE`, or with a measure
+more than :data:`FAR_RATIO` times the photo's own variation, the fit comes with a warning
+that the model does not explain the image. ``auto`` keeps the model whose
 worst measure is closest (a texture is as far from the photo as its worst measure),
 then the best score.
 Pixel-by-pixel measures (SSIM, PSNR) are not used: two samples of the same stochastic
@@ -58,7 +59,9 @@ RELIABLE_SIDE_PX = 128
 """Images smaller than this have their score scaled down by the area ratio."""
 LOW_SCORE = 0.5
 """Scores below this come with a warning that the model does not explain the image."""
-DEFAULT_BUDGET = 120
+FAR_RATIO = 3.5
+"""... and so does a measure more than this many times further from the photo than its halves are."""
+DEFAULT_BUDGET = 90
 """Objective evaluations of the veins' search (the marble's gets a share by its parameters)."""
 TABLE_PERIOD = 32.0
 """Period (noise cells) of the noise tables the search reads."""
@@ -447,12 +450,12 @@ def _warnings(photo: Photo, chosen: ModelReport, constant: bool, lum: np.ndarray
             f"the image is only {photo.analysed_px[0]} x {photo.analysed_px[1]} px: too few features "
             f"for reliable statistics (the score is scaled by the area against {RELIABLE_SIDE_PX}^2 px)"
         )
-    if chosen.score < LOW_SCORE:
-        worst = max(chosen.ratios, key=chosen.ratios.get)
+    worst = max(chosen.ratios, key=chosen.ratios.get)
+    if chosen.score < LOW_SCORE or chosen.ratios[worst] > FAR_RATIO:
         out.append(
-            f"the {chosen.name} model does not explain this image (score {chosen.score:.2f} < {LOW_SCORE}; "
-            f"worst on {worst}, {chosen.ratios[worst]:.1f} times the photo's own variation): the image "
-            "may not be noise-like (regular patterns, edges, tiles), so treat the parameters as a rough guess"
+            f"the {chosen.name} model does not explain this image (score {chosen.score:.2f}; worst on "
+            f"{worst}, {chosen.ratios[worst]:.1f} times the photo's own variation): the image may not be "
+            "noise-like (regular patterns, edges, tiles), so treat the parameters as a rough guess"
         )
     return out
 

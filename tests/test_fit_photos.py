@@ -13,7 +13,7 @@ from printapp.photo import read_photo
 SAMPLES = Path(__file__).parent.parent / "printapp" / "samples" / "marble"
 VEIN_PHOTOS = ("Marble006_512.jpg", "Marble020_512.jpg", "Marble021_512.webp")
 BUDGET = 90
-"""Below the command's default (120): the test's time, not its bar, is cut."""
+"""The command's default."""
 
 
 @pytest.fixture(scope="module")

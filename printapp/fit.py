@@ -82,8 +82,8 @@ METHOD = {
     "score": "geometric mean over the measures of min(1, 1 / ratio), times min(1, (side / 128)^2)",
     "random_phase": "the photo's Fourier moduli with random phases (Galerne, Gousseau & Morel 2011)",
     "fit": "fbm, turbulence: expected spectrum in quarter-octave bins (no synthesis), grid + Nelder-Mead; "
-    "marble, veined: Sobol scan at 128 px, then CMA-ES at 128 px and on 128 px windows at full resolution, "
-    "noise from tables with its spectrum; veined: the three best points measured on the texture itself, "
+    "marble, veined: R_d scan at 128 px, then CMA-ES at 128 px and on 128 px windows at full resolution, "
+    "noise from tables with its spectrum; veined: the five best points measured on the texture itself, "
     "the best kept; values matched to the photo quantile by quantile",
 }
 

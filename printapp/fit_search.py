@@ -9,11 +9,11 @@ matched exactly over the whole image by construction, and at the coarse level th
 distributions in the halves are compared too (veins that fade in and out make halves
 that differ).
 
-1. **Scan** (coarse level): the starting points the photo suggests, then a scrambled
-   Sobol sequence, for every discrete choice (network, sign).
-2. **CMA-ES** (both levels; Hansen 2016, "The CMA Evolution Strategy: A Tutorial", the
-   ``cma`` package) from the best scanned points.
-3. **Finalists**: the three best distinct points are handed back, to be measured on the
+1. **Scan** (coarse level): the starting points the photo suggests, then a low-discrepancy
+   sequence (Roberts' R_d), for every discrete choice (network, sign).
+2. **CMA-ES** (both levels; Hansen 2016, "The CMA Evolution Strategy: A Tutorial",
+   :func:`cma_es`) from the best scanned points.
+3. **Finalists**: the five best distinct points are handed back, to be measured on the
    texture itself (exact noise, full resolution) by the caller, which keeps the best:
    the search reads the noise from tables, so its ranking of near-equal points is a
    ranking on another realisation of the noise.
@@ -56,7 +56,7 @@ WINDOW = 128
 """Side (px) of the fine level's full-resolution window."""
 OBJECTIVE_MEASURES = ("spectrum", "orientation", "lines", "layout", "continuity")
 OPTIMISER_SEED = 20_251_202
-"""The optimiser's own seed (Sobol scrambling, CMA-ES): fixed, whatever ``--seed`` is."""
+"""The optimiser's own seed (CMA-ES's samples): fixed, whatever ``--seed`` is."""
 
 
 def downsample(image: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
@@ -250,30 +250,73 @@ class Objective:
         return results
 
 
-def _cma(objective: Objective, x0: np.ndarray, choice: dict[str, Any], sigma0: float, budget: int) -> None:
-    import cma
+def low_discrepancy(count: int, dims: int) -> np.ndarray:
+    """``count`` points of Roberts' R_d sequence in the unit cube (Roberts 2018, "The unreasonable
+    effectiveness of quasirandom sequences"): ``frac(1/2 + k alpha)``, ``alpha_j = phi_d^-(j+1)`` with
+    ``phi_d`` the root of ``x^(d+1) = x + 1``. As even as a Sobol sequence, for any count."""
+    phi = 2.0
+    for _ in range(40):
+        phi = (1.0 + phi) ** (1.0 / (dims + 1))
+    alpha = phi ** -(np.arange(dims) + 1.0)
+    return np.mod(0.5 + np.outer(np.arange(1, count + 1), alpha), 1.0)
 
+
+def cma_es(objective: Objective, x0: np.ndarray, choice: dict[str, Any], sigma0: float, budget: int) -> None:
+    """CMA-ES in the unit box (Hansen 2016, "The CMA Evolution Strategy: A Tutorial", fig. 6).
+
+    ``(mu / mu_w, lambda)`` selection with ``lambda = 4 + floor(3 ln n)``, cumulative step-size
+    adaptation, rank-one and rank-mu covariance updates, the tutorial's default constants.
+    Points outside the box are evaluated at their projection onto it and penalised by their
+    squared distance from it, so that the distribution is steered back inside. Its own
+    random generator (seed :data:`OPTIMISER_SEED`): never numpy's global one. Stops after
+    ``budget`` evaluations (whole generations) or once the steps are below 1e-4.
+    """
     n = x0.size
-    popsize = 4 + int(3 * math.log(n))
-    # Its own generator, not numpy's global one (which cma's "seed" option would reseed).
+    lam = 4 + int(3 * math.log(n))
+    mu = lam // 2
+    w = math.log(mu + 0.5) - np.log(np.arange(1, mu + 1))
+    w /= w.sum()
+    mueff = 1.0 / float(np.sum(w * w))
+    cc = (4 + mueff / n) / (n + 4 + 2 * mueff / n)
+    cs = (mueff + 2) / (n + mueff + 5)
+    c1 = 2 / ((n + 1.3) ** 2 + mueff)
+    cmu = min(1 - c1, 2 * (mueff - 2 + 1 / mueff) / ((n + 2) ** 2 + mueff))
+    damps = 1 + 2 * max(0.0, math.sqrt((mueff - 1) / (n + 1)) - 1) + cs
+    chi_n = math.sqrt(n) * (1 - 1 / (4 * n) + 1 / (21 * n * n))
     rng = np.random.default_rng(OPTIMISER_SEED)
-    options = {
-        "bounds": [0.0, 1.0],
-        "seed": np.nan,
-        "randn": lambda *shape: rng.standard_normal(shape),
-        "popsize": popsize,
-        "maxfevals": max(budget, popsize),
-        "verbose": -9,
-        "tolfun": 1e-4,
-        "tolx": 1e-4,
-    }
-    es = cma.CMAEvolutionStrategy(np.clip(x0, 0.02, 0.98), sigma0, options)
-    spent = 0
-    while not es.stop() and spent + popsize <= budget:
-        xs = es.ask()
-        values = objective.many([(np.asarray(x), choice) for x in xs])
-        es.tell(xs, values)
-        spent += len(xs)
+    mean = np.clip(np.asarray(x0, dtype=float), 0.02, 0.98)
+    sigma, pc, ps, cov = float(sigma0), np.zeros(n), np.zeros(n), np.eye(n)
+    spent, generation = 0, 0
+    while spent + lam <= budget:
+        eigenvalues, basis = np.linalg.eigh(cov)
+        scale = np.sqrt(np.maximum(eigenvalues, 1e-20))
+        z = rng.standard_normal((lam, n))
+        y = (z * scale) @ basis.T
+        x = mean + sigma * y
+        inside = np.clip(x, 0.0, 1.0)
+        values = objective.many([(u, choice) for u in inside])
+        penalty = np.sum((x - inside) ** 2, axis=1)
+        order = np.argsort(np.asarray(values) + penalty, kind="stable")[:mu]
+        spent += lam
+        generation += 1
+        y_w = w @ y[order]
+        mean = mean + sigma * y_w
+        inv_sqrt = basis @ np.diag(1 / scale) @ basis.T
+        ps = (1 - cs) * ps + math.sqrt(cs * (2 - cs) * mueff) * (inv_sqrt @ y_w)
+        h_sigma = float(
+            np.linalg.norm(ps) / math.sqrt(1 - (1 - cs) ** (2 * generation)) < (1.4 + 2 / (n + 1)) * chi_n
+        )
+        pc = (1 - cc) * pc + h_sigma * math.sqrt(cc * (2 - cc) * mueff) * y_w
+        rank_mu = (y[order].T * w) @ y[order]
+        cov = (
+            (1 - c1 - cmu) * cov
+            + c1 * (np.outer(pc, pc) + (1 - h_sigma) * cc * (2 - cc) * cov)
+            + cmu * rank_mu
+        )
+        cov = 0.5 * (cov + cov.T)
+        sigma *= math.exp((cs / damps) * (np.linalg.norm(ps) / chi_n - 1))
+        if sigma * math.sqrt(float(np.max(np.diag(cov)))) < 1e-4:
+            break
 
 
 def search(
@@ -287,20 +330,17 @@ def search(
 ) -> ModelFit:
     """Fit a synthesised model: a scan at the coarse level, then CMA-ES on all levels.
 
-    A third of ``budget`` scans (``starts``, then a scrambled Sobol sequence, for every
+    A third of ``budget`` scans (``starts``, then a low-discrepancy sequence, for every
     discrete choice) at the coarse level alone; the rest goes to CMA-ES on the sum of all
     levels, from the best scanned point of the best choice (of the best two, each with
     half, when 60 or more evaluations remain), with a step of 0.15 of the unit box.
     """
-    from scipy.stats import qmc
-
     coarse = levels[0]
     params = model.params()
     choices = model.choices()
     seeded = [(model.encode({**s, **c}), c) for c in choices for s in (starts or [])]
     n_sobol = max(2, (budget // 3 - len(seeded)) // len(choices))
-    sobol = qmc.Sobol(len(params), scramble=True, seed=OPTIMISER_SEED)
-    scan = sobol.random(1 << max(1, math.ceil(math.log2(n_sobol))))[:n_sobol]
+    scan = low_discrepancy(n_sobol, len(params))
     items = seeded + [(u, c) for c in choices for u in scan]
     with ThreadPoolExecutor(max_workers=workers) as pool:
         scanner = Objective(model, [coarse], sampler, seed, pool)
@@ -315,7 +355,7 @@ def search(
         polish = ranked[:2] if remaining >= 60 else ranked[:1]
         objective = Objective(model, levels, sampler, seed, pool)
         for _, u0, c in polish:
-            _cma(objective, u0, c, 0.15, max(remaining // len(polish), 1))
+            cma_es(objective, u0, c, 0.15, max(remaining // len(polish), 1))
         if objective.best is None:  # no budget left for CMA-ES: the best scanned point, on all levels
             objective.many([(ranked[0][1], ranked[0][2])])
     assert objective.best is not None
@@ -332,7 +372,7 @@ def search(
     )
 
 
-FINALISTS = 3
+FINALISTS = 5
 """Distinct best points of a search that are measured exactly, on the texture that will be printed."""
 
 

@@ -53,7 +53,7 @@ _OCTAVE_SHIFT = np.array([0.37, 0.71])
 
 
 CUTOFF = 1e-3
-"""Musgrave's loop stops at a point once its next octave's weight is at most this."""
+"""An octave is skipped at a point where its weight is at most this (Musgrave's loop stops there)."""
 
 
 @njit(cache=True, nogil=True)
@@ -112,7 +112,8 @@ def ridged_cascade(
     ``basis(i, index)`` gives octave ``i``'s distances ``d_i >= 0`` (0 on the ridge lines) at
     the points ``index`` (an int64 array into the ``n`` points). Octave 0 is read everywhere;
     octave ``i`` only where its weight ``clamp(gain * s_(i-1), 0, 1)`` exceeds
-    :data:`CUTOFF`, as Musgrave's loop stops (``for (...; weight > 0.001 && ...)``): away
+    :data:`CUTOFF` (Musgrave's loop, ``for (...; weight > 0.001 && ...)``, tests the weight one
+    octave later, so it adds one more octave of weight at most 0.001): away
     from the coarse ridges, no finer octave is ever computed.
 
     Parameters

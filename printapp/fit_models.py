@@ -11,14 +11,14 @@ and a palette of the photo's colours ordered along luminance colours it.
 * ``turbulence``: ``s = sum_i 2^-i |noise(2^i p / F)|``, likewise;
 * ``marble``: Perlin's marble, ``s = ((1 + sin(2 pi (n . p) / period + k T(p / F))) / 2)^sharpness``
   with ``T`` the turbulence (:mod:`noise.veins`); the veins' direction ``n`` from the
-  structure tensor (Bigun & Granlund 1987), their period first from the spectrum's peak
-  across them, then with the rest by synthesis;
+  structure tensor (Bigun & Granlund 1987) and their period from the spectrum's mean
+  frequency across them, in closed form; the rest by synthesis;
 * ``veined``: branching veins, a domain-warped ridged multifractal over noise or cellular
   edges, over an fBm ground (:mod:`noise.ridged`, the ``veined`` texture kind), by synthesis.
 
-While fitting, the noise is read from tables (:class:`noise.tables.NoiseTable`, about 2 %
-from the exact noise); the fitted texture is then evaluated exactly, through the same
-code as a design's relief.
+While fitting, the noise is read from tables (:class:`noise.tables.NoiseTable`: periodic
+Gaussian stand-ins with the noise's spectrum); the fitted texture is then evaluated
+exactly, through the same code as a design's relief.
 """
 
 from __future__ import annotations
@@ -96,7 +96,7 @@ class Hints:
     """Direction (rad, [0, pi), from +x towards +y) the photo's structure runs along."""
     coherence: float
     period_px: float
-    """Wavelength of the spectrum's peak across that direction (px): the veins' period if any."""
+    """Inverse of the spectrum's mean frequency across that direction (px): the veins' period if any."""
     polarity: float = 0.0
     """+1 where the photo's strongest thin lines are bright, -1 dark, 0 where neither stands out."""
     ground: dict[str, Any] | None = None

@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import annotated_types as at
+import numpy as np
 import tomli_w
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
@@ -124,13 +125,40 @@ class Texture(_Section):
     turbulence_strength: Annotated[float, at.Ge(0.0), at.Le(1000.0)] = 5.0
     """marble: radians of the sine's phase per unit of turbulence (low..high octaves)."""
     vein_sharpness: Annotated[float, at.Ge(1.0), at.Le(1000.0)] = 1.0
-    """marble: exponent on the [0, 1] value; large values make thin veins."""
+    """marble: exponent on the [0, 1] value; large values make thin veins. veined: the ridges' profile."""
     veins: Literal["raised", "sunk"] = "raised"
-    """marble: whether the veins (value 1) stand up from the relief or are cut into it."""
+    """marble, veined: whether the veins (value 1) stand up from the relief or are cut into it."""
+    vein_network: Literal["ridged", "cellular"] = "ridged"
+    """veined: ridges along the zero crossings of noise, or along cellular edges (F2 - F1, cracks)."""
+    vein_scale_mm: Annotated[float, at.Gt(0.0), at.Le(10000.0)] = 5.0
+    """veined: cell size of the vein network's first octave (mm)."""
+    vein_octaves: Annotated[int, at.Ge(1), at.Le(12)] = 4
+    """veined: octaves of the ridged multifractal (finer ones are dropped below two samples)."""
+    vein_gain: Annotated[float, at.Ge(0.0), at.Le(16.0)] = 2.0
+    """veined: how strongly a vein lets finer veins branch off it (Musgrave's gain)."""
+    vein_H: Annotated[float, at.Ge(0.0), at.Le(2.0)] = 1.0  # noqa: N815 - Musgrave's H
+    """veined: octave weights lacunarity^(-H i) of the finer veins."""
+    vein_width: Annotated[float, at.Gt(0.0), at.Le(10.0)] = 0.5
+    """veined: half-width of a vein in the basis's units (noise standard deviations, or F2 - F1 in cells)."""
+    vein_warp: Annotated[float, at.Ge(0.0), at.Le(10.0)] = 0.5
+    """veined: domain warp, the displacement's standard deviation in vein cells (noise of noise)."""
+    vein_layers: Annotated[int, at.Ge(1), at.Le(4)] = 1
+    """veined: layers of veins, each turned, scaled and weighted by the three keys below."""
+    vein_layer_turn_rad: Annotated[float, at.Ge(-2 * math.pi), at.Le(2 * math.pi)] = math.pi / 3
+    vein_layer_scale: Annotated[float, at.Gt(0.0), at.Le(10.0)] = 0.5
+    vein_layer_weight: Annotated[float, at.Gt(0.0), at.Le(1.0)] = 0.6
+    vein_fade: Annotated[float, at.Ge(0.0), at.Le(4.0)] = 0.0
+    """veined: how much the veins' strength wanders over the surface (0: evenly strong everywhere)."""
+    ground_weight: Annotated[float, at.Ge(0.0), at.Le(100.0)] = 0.0
+    """veined: weight of the unit-variance fBm ground (octaves, lacunarity, ground_H, feature_size_mm)."""
+    ground_H: Annotated[float, at.Ge(-1.0), at.Le(1.0)] = 0.5  # noqa: N815 - fBm's H
+    """veined: the ground's octave weights lacunarity^(-ground_H i); at 0 or below, grain as strong."""
     palette: tuple[str, ...] | None = Field(default=None, strict=False)
     """Colours '#rrggbb' spaced evenly over palette_range, for colour previews; not the relief."""
     palette_range: tuple[float, float] | None = Field(default=None, strict=False)
     """Texture values given the first and last palette colour [default: 0..1 for marble, else min..max]."""
+    palette_values: tuple[float, ...] | None = Field(default=None, strict=False)
+    """Texture value of each palette colour, monotone (instead of spacing them evenly over palette_range)."""
 
     @field_validator("field")
     @classmethod
@@ -163,6 +191,16 @@ class Texture(_Section):
     def _octave_range(self) -> Texture:
         if self.high < self.low:
             raise ValueError(f"'high' ({self.high}) must be at least 'low' ({self.low})")
+        if self.palette_values is not None:
+            values = self.palette_values
+            if self.palette is None or len(values) != len(self.palette):
+                raise ValueError(
+                    f"'palette_values' needs one value per 'palette' colour, got {len(values)} values for "
+                    f"{len(self.palette or ())} colours"
+                )
+            steps = np.diff(values)
+            if not (np.all(steps > 0) or np.all(steps < 0)):
+                raise ValueError("'palette_values' must run strictly upwards or strictly downwards")
         return self
 
 

@@ -1,24 +1,26 @@
-"""``printapp fit``: noise parameters from a photo, how close they come, and a design that prints them.
+"""``printapp fit``: a printable texture like a photo, how close it comes, and a design that prints it.
 
 The photo is read (EXIF orientation applied, 16-bit and palette images converted,
 opaque alpha dropped), downsampled to at most ``max_side`` pixels and reduced to its
 luminance (Rec. 709 weights on the stored sRGB values). Each model of
-:mod:`printapp.fit_models` is fitted to the luminance; the fitted field, mapped to
-luminance and through a 1-D palette of the photo's colours ordered along luminance,
-is compared with the photo by three measures (spectrum, value distribution, GLCM) beside
-two baselines computed in the same run:
+:mod:`printapp.fit_models` is fitted to the luminance: fBm and turbulence on their
+expected spectrum (:mod:`printapp.fit_spectral`), marble and branching veins on
+syntheses, coarse to fine, by a global search (:mod:`printapp.fit_search`). The fitted
+texture is then evaluated exactly, as a design evaluates it; its values are mapped to
+the photo's colours by a palette that matches the photo's luminance distribution
+quantile by quantile, and compared with the photo by the measures of
+:mod:`printapp.fit_measures` (spectrum, orientation, values, lines, layout) beside the
+random-phase texture with the photo's exact Fourier moduli (Galerne et al. 2011; the
+closest any stationary Gaussian texture comes on the spectrum).
 
-* random parameters of the same model (every searched parameter drawn from the box
-  the optimiser searches; the median of five draws, per measure), and
-* the random-phase texture with the photo's exact Fourier moduli (Galerne et al. 2011):
-  the closest any stationary Gaussian texture comes on the spectrum.
-
-The score compares the fit with the photo's own variability: the same measures
-between the photo's left and right halves, over those between each half and the
-synthesis's other half, capped at one per measure and combined by their geometric mean,
-times ``min(1, (side / 128)^2)`` for images too small to show their statistics. A score
-near 1 means the fit is as close to the photo as the photo is to itself; below
-:data:`LOW_SCORE` the fit comes with a warning that the model does not explain the image.
+Each measure is a ratio to the photo's own variation (its left half against its
+right half; 1 = as close to the photo as the photo is to itself). The score is the
+geometric mean over the measures of ``min(1, 1 / ratio)``, times ``min(1, (side / 128)^2)``
+for images too small to show their statistics; below :data:`LOW_SCORE`, or with a measure
+more than :data:`FAR_RATIO` times the photo's own variation, the fit comes with a warning
+that the model does not explain the image. ``auto`` keeps the model whose
+worst measure is closest (a texture is as far from the photo as its worst measure),
+then the best score.
 Pixel-by-pixel measures (SSIM, PSNR) are not used: two samples of the same stochastic
 texture differ at every pixel.
 """
@@ -26,7 +28,9 @@ texture differ at every pixel.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import math
+import os
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -36,48 +40,70 @@ import numpy as np
 
 from printapp.design import Texture
 from printapp.errors import PrintappError
-from printapp.fit_measures import Distances, Target, ValueMap, distances
-from printapp.fit_models import MODELS, Grid, NoiseLookup, exact_noise
-from printapp.fit_search import ModelFit, fit_model, lookup_extent, random_values, unfitted
-from printapp.photo import LUMA, MIN_SIDE_PX, PALETTE_SIZE, Photo, hex_colour, luminance_palette, read_photo
+from printapp.fit_measures import (
+    MEASURES,
+    Distances,
+    Stats,
+    half_stats,
+    halves_distance,
+    line_maps,
+    own_distance,
+    ratios,
+)
+from printapp.fit_models import MODELS, SYNTHESISED, Hints, Model, make_model
+from printapp.photo import LUMA, MIN_SIDE_PX, Photo, hex_colour, luminance_palette, read_photo
 
+STEP = math.log(1.02)
+"""Worst measures within 2 % of each other tie when ``auto`` chooses a model."""
 RELIABLE_SIDE_PX = 128
 """Images smaller than this have their score scaled down by the area ratio."""
 LOW_SCORE = 0.5
 """Scores below this come with a warning that the model does not explain the image."""
-DEFAULT_BUDGET = 160
-"""Objective evaluations per model."""
+FAR_RATIO = 3.5
+"""... and so does a measure more than this many times further from the photo than its halves are."""
+DEFAULT_BUDGET = 90
+"""Objective evaluations of the veins' search (the marble's gets a share by its parameters)."""
+TABLE_PERIOD = 32.0
+"""Period (noise cells) of the noise tables the search reads."""
+QUANTILE_KNOTS = 64
+"""Colours in a fitted palette (each at a quantile of the texture's values)."""
 METHOD = {
-    "log_spectrum_distance": "RMS, over the frequency samples from 2/N to 0.4 cycles/px, of log10 of the "
-    "ratio of the Hann-windowed periodograms averaged in polar bins (half an octave x 30 degrees)",
-    "wasserstein": "1-Wasserstein distance between the luminance distributions (luminance 0..1)",
-    "glcm_difference": "RMS difference of GLCM contrast/((L^2-1)/6), homogeneity and correlation at "
-    "1, 2, 4, 8, 16 px x 4 directions, 16 levels equalised on the photo (scikit-image)",
-    "random_parameters": "median over 5 draws of every searched parameter from the optimiser's box",
+    "spectrum": "RMS over half-octave bins (1 cycle per image to Nyquist, equal weight per octave) of the "
+    "log10 ratio of the radially averaged Hann-windowed periodograms (decades)",
+    "orientation": "RMS over octave bands x 8 angles of the log10 power less each band's mean (decades)",
+    "values": "1-Wasserstein distance of each sRGB channel's distribution, averaged (0..1)",
+    "lines": "RMS of per scale (1, 2, 4, 8 px) and polarity: log10 mean, 90th and 99th percentile of the "
+    "Hessian line strength, and the correlation of strengths across neighbouring scales",
+    "layout": "RMS of the half-octave log spectra of the three finest line-strength maps, each over its mean",
+    "continuity": "RMS over the finest two scales and both polarities of log10(chance / 1 %) that a pixel in "
+    "the top 1 % of line strength has one 4, 8, 16, 32 px along its line's direction too",
+    "ratio": "each measure over the photo's own (left half against right, bottom against top; the fit's "
+    "halves against the photo's other halves), both floored at what is too small to see",
+    "score": "geometric mean over the measures of min(1, 1 / ratio), times min(1, (side / 128)^2)",
     "random_phase": "the photo's Fourier moduli with random phases (Galerne, Gousseau & Morel 2011)",
-    "score": "geometric mean over the measures of min(1, max(photo halves, invisible) / fit halves), "
-    "times min(1, (side / 128)^2); invisible = 0.05 decades, 1/255, 0.03",
-    "fit": "fbm, turbulence: expected radial spectrum (no synthesis) by grid + Nelder-Mead, then sign and "
-    "skew of the value map by bounded Brent on Wasserstein + GLCM; marble: vein direction from the "
-    "structure tensor, the rest by a Sobol scan + Nelder-Mead on syntheses at two scales (SciPy)",
+    "fit": "fbm, turbulence: expected spectrum in quarter-octave bins (no synthesis), grid + Nelder-Mead; "
+    "marble, veined: R_d scan at 128 px, then CMA-ES at 128 px and on 128 px windows at full resolution, "
+    "noise from tables with its spectrum; veined: the five best points measured on the texture itself, "
+    "the best kept; values matched to the photo quantile by quantile",
 }
-INVISIBLE = {"spectrum": 0.05, "histogram": 1.0 / 255.0, "glcm": 0.03}
-"""Differences too small to see: 0.05 decades of power (12 %), one grey level, 0.03 of a GLCM statistic."""
-RANDOM_DRAWS = 5
-REPORT_GLCM_DISTANCES = (1, 2, 4, 8, 16)
 
 
 @dataclass
 class ModelReport:
-    """One fitted model: its parameters, the texture that reproduces it, and its measures."""
+    """One fitted model: its parameters, the texture that prints it, and how close it comes."""
 
     name: str
-    fit: ModelFit
+    values: dict[str, Any]
     texture: Texture
     params: dict[str, Any]
-    measures: Distances
     halves: Distances
+    """The measures between the fit and the photo, half against half (:func:`halves_distance`)."""
+    ratios: dict[str, float]
     score: float
+    objective: float
+    evaluations: int
+    trace: list[tuple[int, float]]
+    seconds: float
     lum: np.ndarray
     rgb: np.ndarray
 
@@ -89,10 +115,9 @@ class FitResult:
     photo: Photo
     chosen: ModelReport
     reports: dict[str, ModelReport]
-    random_parameters: Distances
-    random_phase: Distances
-    photo_halves: Distances
+    random_phase_halves: Distances
     random_phase_rgb: np.ndarray
+    photo_halves: Distances
     score: float
     warnings: list[str]
     scale_mm_per_px: float
@@ -114,19 +139,23 @@ class FitResult:
             "params": chosen.params,
             "score": round(self.score, 4),
             "warnings": self.warnings,
+            "ratios": {
+                "fit": _rounded(chosen.ratios),
+                "random_phase": _rounded(ratios(self.random_phase_halves, self.photo_halves)),
+            },
             "measures": {
-                "fit": _rounded(chosen.measures.as_dict()),
-                "random_parameters": _rounded(self.random_parameters.as_dict()),
-                "random_phase": _rounded(self.random_phase.as_dict()),
+                "fit": _rounded(chosen.halves.as_dict()),
+                "random_phase": _rounded(self.random_phase_halves.as_dict()),
                 "photo_halves": _rounded(self.photo_halves.as_dict()),
-                "fit_halves": _rounded(chosen.halves.as_dict()),
             },
             "models": {
                 name: {
                     "score": round(r.score, 4),
-                    "objective": round(r.fit.objective, 5) if math.isfinite(r.fit.objective) else None,
-                    "evaluations": r.fit.evaluations,
-                    "measures": _rounded(r.measures.as_dict()),
+                    "ratios": _rounded(r.ratios),
+                    "objective": round(r.objective, 5) if math.isfinite(r.objective) else None,
+                    "evaluations": r.evaluations,
+                    "seconds": round(r.seconds, 3),
+                    "measures": _rounded(r.halves.as_dict()),
                     "params": r.params,
                 }
                 for name, r in self.reports.items()
@@ -141,244 +170,129 @@ def _rounded(values: dict[str, float]) -> dict[str, float]:
     return {k: float(f"{v:.5g}") for k, v in values.items()}
 
 
-def _halves(image: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Left and right halves (along the longer axis), of equal size."""
-    if image.shape[1] >= image.shape[0]:
-        half = image.shape[1] // 2
-        return image[:, :half], image[:, half : 2 * half]
-    half = image.shape[0] // 2
-    return image[:half], image[half : 2 * half]
-
-
-def _half_targets(lum: np.ndarray) -> tuple[Target, Target]:
-    return tuple(  # type: ignore[return-value]
-        Target.of(h, f_max=0.4, glcm_distances=REPORT_GLCM_DISTANCES) for h in _halves(lum)
-    )
-
-
-def score_ratios(fit_halves: Distances, photo_halves: Distances) -> dict[str, float]:
-    """Per measure, ``min(1, max(photo halves, floor) / fit halves)``: 1 where the fit is as close
-    as the photo is to itself, or closer than the eye could tell (:data:`INVISIBLE`)."""
-    ratios = {}
-    for name, floor in INVISIBLE.items():
-        own = max(getattr(photo_halves, name), floor)
-        theirs = getattr(fit_halves, name)
-        ratios[name] = min(1.0, own / theirs) if theirs > 0 else 1.0
-    return ratios
-
-
-def _score(fit_halves: Distances, photo_halves: Distances, side: int) -> float:
-    ratios = score_ratios(fit_halves, photo_halves)
-    geometric = math.prod(ratios.values()) ** (1.0 / len(ratios))
-    return geometric * min(1.0, (side / RELIABLE_SIDE_PX) ** 2)
-
-
-def fitted_texture(
-    name: str,
-    values: dict[str, Any],
-    photo: Photo,
-    scale_mm: float,
-    seed: int,
-    value_map: ValueMap | None = None,
-    value_range: tuple[float, float] = (0.0, 1.0),
-) -> Texture:
-    """The design texture that reproduces a fitted model, ``scale_mm`` mm per analysed pixel.
-
-    The palette spans ``value_range`` with :data:`PALETTE_SIZE` colours: the photo's
-    mean colour at the luminance that ``value_map`` gives each value, so the palette
-    carries the whole value-to-colour map. Numbers are rounded to 6 significant digits
-    here, so the file holds exactly the texture that was measured.
-    """
-    common: dict[str, Any] = {
-        "kind": name,
-        "feature_size_mm": _round6(values["feature_px"] * scale_mm),
-        "seed": seed,
-    }
-    if value_map is not None:
-        lo, hi = value_range if value_range[1] > value_range[0] else (value_range[0], value_range[0] + 1.0)
-        knots = np.linspace(_round6(lo), _round6(hi), PALETTE_SIZE)
-        lum_knots, colours = luminance_palette(photo)
-        lum = value_map(knots)
-        palette = np.stack([np.interp(lum, lum_knots, colours[:, c]) for c in range(3)], axis=-1)
-        common["palette"] = tuple(hex_colour(c) for c in palette)
-        common["palette_range"] = (float(knots[0]), float(knots[-1]))
-    if name == "fbm":
-        extra = {
-            "octaves": values["octaves"],
-            "lacunarity": _round6(values["lacunarity"]),
-            "H": _round6(values["H"]),
-        }
-    elif name == "turbulence":
-        extra = {"low": 0, "high": values["octaves"] - 1}
-    else:
-        extra = {
-            "low": 0,
-            "high": values["octaves"] - 1,
-            "vein_angle_rad": _round6(np.mod(values["angle"], math.pi)),
-            "vein_period_mm": _round6(values["period_px"] * scale_mm),
-            "turbulence_strength": _round6(values["strength"]),
-            "vein_sharpness": _round6(values["sharpness"]),
-        }
-    return Texture.model_validate({**common, **extra})
-
-
 def _round6(value: float) -> float:
     return float(f"{float(value):.6g}")
 
 
-def _palette_span(s: np.ndarray, value_map: ValueMap) -> tuple[float, float]:
-    """The values between which the luminance map is not clipped (the palette needs no more)."""
-    order = np.sort(s.ravel())
-    lum = value_map(order)
-    inside = np.flatnonzero((lum > value_map.lo) & (lum < value_map.hi))
-    if inside.size < 2:
-        return float(order[0]), float(order[-1])
-    first, last = max(inside[0] - 1, 0), min(inside[-1] + 1, order.size - 1)
-    return float(order[first]), float(order[last])
+def score_of(r: dict[str, float], side: int) -> float:
+    """Geometric mean over the measures of ``min(1, 1 / ratio)``, scaled down for small images."""
+    geometric = math.prod(min(1.0, 1.0 / v) for v in r.values()) ** (1.0 / len(r))
+    return geometric * min(1.0, (side / RELIABLE_SIDE_PX) ** 2)
+
+
+def fitted_texture(
+    model: Model, values: dict[str, Any], scale_mm: float, seed: int, palette: dict[str, Any] | None = None
+) -> Texture:
+    """The design texture of fitted ``values`` (lengths in analysed px), ``scale_mm`` mm per analysed px.
+
+    Numbers are rounded to 6 significant digits here, so the file holds exactly the
+    texture that was measured.
+    """
+    fields: dict[str, Any] = {}
+    for key, value in model.texture_fields(values).items():
+        if key.endswith("_mm"):
+            value = value * scale_mm
+        fields[key] = _round6(value) if isinstance(value, float) else value
+    return Texture.model_validate({**fields, "seed": seed, **(palette or {})})
+
+
+def quantile_palette(s: np.ndarray, sign: float, photo: Photo) -> dict[str, Any]:
+    """A palette that maps the texture's values onto the photo's colours quantile by quantile.
+
+    :data:`QUANTILE_KNOTS` knots sit at quantiles of the values (denser in the tails, where
+    veins are: probabilities spaced evenly in ``Phi^-1``, the normal quantile function,
+    from 0.1 % to 99.9 %, and the extremes); knot ``v`` at probability ``q`` gets the
+    photo's mean colour at its luminance quantile ``q`` (``1 - q`` for ``sign < 0``, low
+    values bright). Matching the photo's luminance distribution this way is exact up to the
+    palette's linear interpolation between knots.
+    """
+    from scipy.special import ndtr
+
+    order = np.sort(s, axis=None)
+    probabilities = np.concatenate([[0.0], ndtr(np.linspace(-3.09, 3.09, QUANTILE_KNOTS - 2)), [1.0]])
+    knots = np.array([_round6(v) for v in np.quantile(order, probabilities)])
+    keep = np.concatenate([[True], np.diff(knots) > 0])
+    knots, probabilities = knots[keep], probabilities[keep]
+    if knots.size < 2:
+        knots, probabilities = np.array([knots[0], knots[0] + 1.0]), np.array([0.0, 1.0])
+    lum_sorted = np.sort(photo.lum, axis=None)
+    fraction = probabilities if sign > 0 else 1.0 - probabilities
+    lum = np.quantile(lum_sorted, fraction)
+    lum_knots, colours = luminance_palette(photo)
+    rgb = np.stack([np.interp(lum, lum_knots, colours[:, c]) for c in range(3)], axis=-1)
+    return {
+        "palette": tuple(hex_colour(c) for c in rgb),
+        "palette_values": tuple(float(v) for v in knots),
+    }
 
 
 def synthesise(texture: Texture, shape: tuple[int, int], scale_mm: float) -> np.ndarray:
     """The texture's values at the pixel centres of a ``shape`` image, ``scale_mm`` mm per pixel (rows up).
 
-    The same evaluation as the design's tile relief and ``printapp texture --from``;
-    marble gives its [0, 1] value whatever ``veins`` says.
+    The same evaluation as ``printapp texture --from``: a design's (with the veins
+    raised or sunk as ``veins`` says), every octave the pixels resolve.
     """
     from printapp.texture import evaluate_texture_grid
-    from printapp.texture_kinds import vein_sign
 
     x_mm = (np.arange(shape[1]) + 0.5) * scale_mm
     y_mm = (np.arange(shape[0]) + 0.5) * scale_mm
-    values = evaluate_texture_grid(x_mm, y_mm, texture, scale_mm)
-    return vein_sign(texture) * values
+    return evaluate_texture_grid(x_mm, y_mm, texture, scale_mm)
 
 
-def _reported_params(
-    name: str, texture: Texture, values: dict[str, Any], value_map: ValueMap, photo: Photo
-) -> dict[str, Any]:
-    """Parameters in the photo's own pixels (before downsampling) and in mm, as metrics.json gives them."""
+def reported_params(model: Model, values: dict[str, Any], texture: Texture, photo: Photo) -> dict[str, Any]:
+    """Parameters in the photo's own pixels (before downsampling), mm and degrees: metrics.json's."""
     px = photo.downscale
+    out: dict[str, Any] = {"sign": values["sign"]}
     feature_px = values["feature_px"] * px
-    out: dict[str, Any] = {}
-    if name == "fbm":
+    if model.name in ("fbm", "turbulence", "veined"):
         out |= {
-            "octaves": texture.octaves,
-            "lacunarity": round(texture.lacunarity, 5),
-            "H": round(texture.H, 5),
+            "octaves": values.get("octaves", texture.octaves),
+            "H": round(values.get("H", 1.0), 5),
+            "lacunarity": round(values.get("lacunarity", 2.0), 5),
             "frequency": float(f"{1.0 / feature_px:.6g}"),
             "feature_size_px": round(feature_px, 4),
         }
-    else:
+    if model.name == "marble":
+        period_px = values["period_px"] * px
         out |= {
-            "octaves_low": texture.low,
-            "octaves_high": texture.high,
+            "vein_angle_deg": round(math.degrees(texture.vein_angle_rad), 3),
+            "vein_period_px": round(period_px, 4),
+            "vein_frequency": float(f"{1.0 / period_px:.6g}"),
+            "vein_period_mm": texture.vein_period_mm,
+            "turbulence_strength": round(texture.turbulence_strength, 5),
+            "turbulence_feature_size_px": round(feature_px, 4),
             "octaves": texture.high - texture.low + 1,
+            "vein_sharpness": round(texture.vein_sharpness, 5),
         }
-        if name == "turbulence":
-            out |= {"frequency": float(f"{1.0 / feature_px:.6g}"), "feature_size_px": round(feature_px, 4)}
-        else:
-            period_px = values["period_px"] * px
-            out |= {
-                "vein_angle_deg": round(math.degrees(texture.vein_angle_rad), 3),
-                "vein_frequency": float(f"{1.0 / period_px:.6g}"),
-                "vein_period_px": round(period_px, 4),
-                "vein_period_mm": float(f"{texture.vein_period_mm:.6g}"),
-                "turbulence_strength": round(texture.turbulence_strength, 5),
-                "turbulence_frequency": float(f"{1.0 / feature_px:.6g}"),
-                "turbulence_feature_size_px": round(feature_px, 4),
-                "vein_sharpness": round(texture.vein_sharpness, 5),
-            }
+    if model.name == "veined":
+        vein_px = values["vein_px"] * px
+        out |= {
+            "vein_network": texture.vein_network,
+            "vein_period_px": round(vein_px, 4),
+            "vein_scale_mm": texture.vein_scale_mm,
+            "vein_angle_deg": round(math.degrees(texture.angle_rad), 3),
+            "vein_stretch": round(texture.stretch, 5),
+            "vein_width": round(texture.vein_width, 5),
+            "vein_sharpness": round(texture.vein_sharpness, 5),
+            "vein_gain": round(texture.vein_gain, 5),
+            "vein_H": round(texture.vein_H, 5),
+            "vein_warp": round(texture.vein_warp, 5),
+            "vein_fade": round(texture.vein_fade, 5),
+            "ground_weight": round(texture.ground_weight, 5),
+            "ground_H": round(texture.ground_H, 5),
+        }
     out |= {
-        "feature_size_mm": float(f"{texture.feature_size_mm:.6g}"),
-        "amplitude": float(f"{value_map.amplitude:.6g}"),
-        "offset": float(f"{value_map.offset:.6g}"),
-        "skew": round(value_map.skew, 5),
-        "sign": value_map.sign,
+        "feature_size_mm": texture.feature_size_mm,
         "seed": texture.seed,
         "palette": list(texture.palette or ()),
-        "palette_range": [float(f"{v:.6g}") for v in texture.palette_range or ()],
+        "palette_values": list(texture.palette_values or ()),
     }
     return out
 
 
-def _report_model(
-    fit: ModelFit, photo: Photo, target: Target, halves: tuple[Target, Target], scale_mm: float, seed: int
-) -> ModelReport:
-    from printapp.texture import palette_colours
-
-    name = fit.model.name
-    # The values through the design's own evaluation; the palette then maps them to colour.
-    s = synthesise(fitted_texture(name, fit.values, photo, scale_mm, seed), photo.lum.shape, scale_mm)
-    value_map = ValueMap.fit(s, target, fit.values["sign"], fit.values.get("skew", 0.0))
-    texture = fitted_texture(name, fit.values, photo, scale_mm, seed, value_map, _palette_span(s, value_map))
-
-    rgb = palette_colours(s, texture)
-    lum = rgb @ LUMA
-    measures = distances(lum, target)
-    left, right = _halves(lum)
-    fit_halves = _mean_distances([distances(left, halves[1]), distances(right, halves[0])])
-    return ModelReport(
-        name=name,
-        fit=fit,
-        texture=texture,
-        params=_reported_params(name, texture, fit.values, value_map, photo),
-        measures=measures,
-        halves=fit_halves,
-        score=0.0,
-        lum=lum,
-        rgb=rgb,
-    )
-
-
-def _mean_distances(items: list[Distances]) -> Distances:
-    return Distances(
-        spectrum=float(np.mean([d.spectrum for d in items])),
-        histogram=float(np.mean([d.histogram for d in items])),
-        glcm=float(np.mean([d.glcm for d in items])),
-    )
-
-
-def _median_distances(items: list[Distances]) -> Distances:
-    return Distances(
-        spectrum=float(np.median([d.spectrum for d in items])),
-        histogram=float(np.median([d.histogram for d in items])),
-        glcm=float(np.median([d.glcm for d in items])),
-    )
-
-
-def fit_photo(
-    source: str | Path | Photo,
-    *,
-    model: str = "auto",
-    scale_mm_per_px: float | None = None,
-    seed: int = 0,
-    budget: int = DEFAULT_BUDGET,
-    max_side: int = 512,
-    timer=None,
-) -> FitResult:
-    """Fit noise models to a photo and measure the fit beside the two baselines.
-
-    Parameters
-    ----------
-    source : path or :class:`Photo`
-    model : {"auto", "fbm", "turbulence", "marble"}
-        ``"auto"`` fits all three and keeps the best score (ties: the simpler model).
-    scale_mm_per_px : float, optional
-        Millimetres per pixel of the original image, for the design fragment's lengths;
-        default: the image's width spans a 20 mm tile.
-    seed : int
-        Seed of the synthesis (the noise), of the optimiser's scan and of the baselines.
-    budget : int
-        Objective evaluations per model.
-    max_side : int
-        The photo is analysed at most this many pixels on its longer side.
-    timer : printapp.progress.StageTimer, optional
-        Shows and times the stages.
-
-    Raises
-    ------
-    PrintappError
-        For unreadable or unusable images, or out-of-range options.
-    """
+def _check(
+    model: str, budget: int, max_side: int, scale_mm_per_px: float | None, seed: int, workers: int
+) -> None:
     if model not in ("auto", *MODELS):
         raise PrintappError(f"--model: expected auto, {', '.join(MODELS)}; got '{model}'")
     if not (isinstance(budget, int) and budget >= 8):
@@ -389,6 +303,59 @@ def fit_photo(
         raise PrintappError(f"--scale-mm-per-px: expected a positive number, got {scale_mm_per_px}")
     if not (isinstance(seed, int) and 0 <= seed < 2**63):
         raise PrintappError(f"--seed: expected an integer in [0, 2^63), got {seed}")
+    if not (isinstance(workers, int) and 1 <= workers <= 64):
+        raise PrintappError(f"--workers: expected an integer in 1..64, got {workers}")
+
+
+def default_workers() -> int:
+    """The cores this process may use (at most 8)."""
+    try:
+        return max(1, min(8, len(os.sched_getaffinity(0))))
+    except AttributeError:  # pragma: no cover - not Linux
+        return max(1, min(8, os.cpu_count() or 1))
+
+
+def fit_photo(
+    source: str | Path | Photo,
+    *,
+    model: str = "auto",
+    scale_mm_per_px: float | None = None,
+    seed: int = 0,
+    budget: int = DEFAULT_BUDGET,
+    max_side: int = 512,
+    workers: int | None = None,
+    timer=None,
+) -> FitResult:
+    """Fit texture models to a photo and measure each fit beside the random-phase baseline.
+
+    Parameters
+    ----------
+    source : path or :class:`Photo`
+    model : {"auto", "fbm", "turbulence", "marble", "veined"}
+        ``"auto"`` fits all and keeps the one whose worst measure's ratio is smallest (then the best
+        score, then the simpler model).
+    scale_mm_per_px : float, optional
+        Millimetres per pixel of the original image, for the design fragment's lengths;
+        default: the image's width spans a 20 mm tile.
+    seed : int
+        Seed of the noise (the synthesis and the baseline). The optimiser has its own fixed seed.
+    budget : int
+        Coarse objective evaluations per synthesised model.
+    max_side : int
+        The photo is analysed at most this many pixels on its longer side.
+    workers : int, optional
+        Threads that evaluate the optimiser's populations (default: the cores available);
+        results do not depend on it.
+    timer : printapp.progress.StageTimer, optional
+        Shows and times the stages.
+
+    Raises
+    ------
+    PrintappError
+        For unreadable or unusable images, or out-of-range options.
+    """
+    workers = default_workers() if workers is None else workers
+    _check(model, budget, max_side, scale_mm_per_px, seed, workers)
 
     def stage(name: str, label: str):
         return timer.stage(name, label) if timer is not None else contextlib.nullcontext()
@@ -396,78 +363,72 @@ def fit_photo(
     start = time.perf_counter()
     with stage("read", "reading the photo"):
         photo = source if isinstance(source, Photo) else read_photo(source, max_side)
-    lum = photo.lum
-    side = min(lum.shape)
-    original_scale = scale_mm_per_px if scale_mm_per_px is not None else 20.0 / photo.original_px[0]
-    scale_mm = original_scale * photo.downscale  # mm per analysed pixel
-    warnings: list[str] = []
-    constant = float(lum.std()) < 0.5 / 255.0
-    if constant:
-        warnings.append(
-            f"the image is constant (luminance standard deviation {lum.std():.2g}): there is no "
-            "texture to fit, and the fitted parameters mean nothing"
-        )
-    target = Target.of(lum, f_max=0.4, glcm_distances=REPORT_GLCM_DISTANCES)
-    halves = _half_targets(lum)
-    left, right = _halves(lum)
-    photo_halves = _mean_distances([distances(left, halves[1]), distances(right, halves[0])])
+        lum = photo.lum
+        original_scale = scale_mm_per_px if scale_mm_per_px is not None else 20.0 / photo.original_px[0]
+        scale_mm = original_scale * photo.downscale  # mm per analysed pixel
+        constant = float(lum.std()) < 0.5 / 255.0
+        maps = line_maps(lum)
+        photo_halves_stats = half_stats(lum, photo.rgb, maps)
+        photo_halves = own_distance(photo_halves_stats)
+        hints = Hints.of(lum, maps.strengths)
+        search_state: dict[str, Any] = {"maps": maps}
     names = list(MODELS) if model == "auto" else [model]
-    lookup = NoiseLookup(lookup_extent(lum.shape), seed)
     reports: dict[str, ModelReport] = {}
+    spectral: dict[str, tuple[dict[str, Any], float, int]] = {}
     for name in names:
         with stage(f"fit_{name}", f"fitting {name}"):
+            t0 = time.perf_counter()
+            if name == "veined" and not constant:
+                # The veins' ground starts from the photo's own fBm (its spectrum).
+                from printapp.fit_spectral import fit_spectral
+
+                ground = spectral["fbm"][0] if "fbm" in spectral else fit_spectral("fbm", lum)[0]
+                hints = dataclasses.replace(hints, ground=ground)
+            m = make_model(name, hints)
             if constant:
-                fit = unfitted(name, lum)  # nothing to match: the middle of the box, said so
+                values, objective, evaluations, trace = m.neutral(), math.nan, 0, []
+            elif name in SYNTHESISED:
+                values, objective, evaluations, trace, finalists = _fit_synthesised(
+                    m, lum, seed, budget, workers, search_state
+                )
             else:
-                fit = fit_model(name, lum, target, seed=seed, budget=budget, lookup=lookup)
-            report = _report_model(fit, photo, target, halves, scale_mm, seed)
-            report.score = 0.0 if constant else _score(report.halves, photo_halves, side)
+                from printapp.fit_spectral import fit_spectral
+
+                spectral[name] = fit_spectral(name, lum)
+                values, objective, evaluations = spectral[name]
+                values, trace = _with_sign(m, values, lum, seed, search_state), []
+            if constant or name not in SYNTHESISED:
+                report = _report(m, values, photo, photo_halves_stats, photo_halves, scale_mm, seed)
+            else:
+                # The finalists measured on the texture itself: the one whose worst measure is best.
+                photo_stats = (photo_halves_stats, photo_halves)
+                candidates = [_report(m, v, photo, *photo_stats, scale_mm, seed) for _, v in finalists]
+                best = min(range(len(candidates)), key=lambda k: (max(candidates[k].ratios.values()), k))
+                report, objective = candidates[best], finalists[best][0]
+            report.objective, report.evaluations, report.trace = objective, evaluations, trace
+            report.seconds = time.perf_counter() - t0
+            if constant:
+                report.score = 0.0
             reports[name] = report
-    chosen = max(reports.values(), key=lambda r: (round(r.score, 6), -names.index(r.name)))
-    with stage("baselines", "baselines (random parameters, random phase)"):
-        rng = np.random.default_rng(seed + 1)
-        grid = Grid.of(lum.shape, lum.shape)
-        draws = []
-        for _ in range(RANDOM_DRAWS):
-            values = random_values(chosen.fit.model, rng, grid.pitch_px)
-            s = chosen.fit.model.field(values, grid, exact_noise(seed))
-            lum_random = ValueMap.fit(s, target, values["sign"], values.get("skew", 0.0))(s)
-            draws.append(distances(lum_random, target))
-        random_parameters = _median_distances(draws)
+    # A texture is as far from the photo as its worst measure: a noise that misses the veins
+    # is wrong however close its spectrum. Ties (the worst measure within 2 %) go to the score.
+    chosen = min(
+        reports.values(),
+        key=lambda r: (round(math.log(max(r.ratios.values())) / STEP), -r.score, names.index(r.name)),
+    )
+    with stage("baseline", "random-phase baseline"):
         from noise.spectra import random_phase
 
         phase_rgb = np.clip(random_phase(photo.rgb, seed), 0.0, 1.0)
-        phase_distances = distances(phase_rgb @ LUMA, target)
-    if not constant:
-        if min(photo.analysed_px) < RELIABLE_SIDE_PX:
-            warnings.append(
-                f"the image is only {photo.analysed_px[0]} x {photo.analysed_px[1]} px: too few features "
-                f"for reliable statistics (the score is scaled by the area against {RELIABLE_SIDE_PX}^2 px)"
-            )
-        if chosen.score < LOW_SCORE:
-            warnings.append(
-                f"the {chosen.name} model does not explain this image (score {chosen.score:.2f} "
-                f"< {LOW_SCORE}): its statistics are further from the photo's than the photo's halves "
-                "are from each other; the image may not be noise-like (regular patterns, edges, "
-                "tiles), so treat the parameters as a rough guess"
-            )
-        worse = [
-            measure
-            for measure in ("spectrum", "histogram", "glcm")
-            if getattr(chosen.measures, measure) >= getattr(random_parameters, measure)
-        ]
-        if worse:
-            warnings.append(
-                f"the fit is no closer than random {chosen.name} parameters on: {', '.join(worse)}"
-            )
+        phase_halves = halves_distance(half_stats(phase_rgb @ LUMA, phase_rgb), photo_halves_stats)
+    warnings = _warnings(photo, chosen, constant, lum)
     return FitResult(
         photo=photo,
         chosen=chosen,
         reports=reports,
-        random_parameters=random_parameters,
-        random_phase=phase_distances,
-        photo_halves=photo_halves,
+        random_phase_halves=phase_halves,
         random_phase_rgb=phase_rgb,
+        photo_halves=photo_halves,
         score=chosen.score,
         warnings=warnings,
         scale_mm_per_px=original_scale,
@@ -475,3 +436,103 @@ def fit_photo(
         budget=budget,
         seconds=time.perf_counter() - start,
     )
+
+
+def _warnings(photo: Photo, chosen: ModelReport, constant: bool, lum: np.ndarray) -> list[str]:
+    if constant:
+        return [
+            f"the image is constant (luminance standard deviation {lum.std():.2g}): there is no "
+            "texture to fit, and the fitted parameters mean nothing"
+        ]
+    out = []
+    if min(photo.analysed_px) < RELIABLE_SIDE_PX:
+        out.append(
+            f"the image is only {photo.analysed_px[0]} x {photo.analysed_px[1]} px: too few features "
+            f"for reliable statistics (the score is scaled by the area against {RELIABLE_SIDE_PX}^2 px)"
+        )
+    worst = max(chosen.ratios, key=chosen.ratios.get)
+    if chosen.score < LOW_SCORE or chosen.ratios[worst] > FAR_RATIO:
+        out.append(
+            f"the {chosen.name} model does not explain this image (score {chosen.score:.2f}; worst on "
+            f"{worst}, {chosen.ratios[worst]:.1f} times the photo's own variation): the image may not be "
+            "noise-like (regular patterns, edges, tiles), so treat the parameters as a rough guess"
+        )
+    return out
+
+
+def _search_setup(lum: np.ndarray, seed: int, state: dict[str, Any]) -> tuple[list, Any]:
+    """The search's levels and noise tables, made once per photo and shared by the models."""
+    if "levels" not in state:
+        from noise.tables import NoiseTable
+        from printapp.fit_search import coarse_level, window_level
+
+        levels = [coarse_level(lum)]
+        window = window_level(lum, state.get("maps"))
+        if window is not None:
+            levels.append(window)
+        state["levels"], state["table"] = levels, NoiseTable(TABLE_PERIOD, seed)
+    return state["levels"], state["table"]
+
+
+def _fit_synthesised(
+    m: Model, lum: np.ndarray, seed: int, budget: int, workers: int, state: dict[str, Any]
+) -> tuple[dict[str, Any], float, int, list, list]:
+    from printapp.fit_search import search
+
+    levels, table = _search_setup(lum, seed, state)
+    # The budget is the veins' (nine parameters); the marble searches three.
+    share = budget if m.name == "veined" else max(8, budget * len(m.params()) // 18)
+    found = search(m, levels, table, seed, share, workers, starts=m.starts())
+    finalists = found.candidates if m.name == "veined" else found.candidates[:1]
+    return found.values, found.objective, found.evaluations, found.trace, finalists
+
+
+def _with_sign(
+    m: Model, values: dict[str, Any], lum: np.ndarray, seed: int, state: dict[str, Any]
+) -> dict[str, Any]:
+    """The sign (high values bright or dark) that brings the coarse level closest."""
+    from printapp.fit_measures import match_values
+
+    levels, table = _search_setup(lum, seed, state)
+    level = levels[0]
+    s = level.synthesise(m, {**values, "sign": 1.0}, table, seed)
+    costs = {sign: level.cost(match_values(s, level.sorted_lum, sign)) for sign in (1.0, -1.0)}
+    return {**values, "sign": min(costs, key=costs.get)}
+
+
+def _report(
+    m: Model,
+    values: dict[str, Any],
+    photo: Photo,
+    photo_halves_stats: tuple[Stats, ...],
+    photo_halves: Distances,
+    scale_mm: float,
+    seed: int,
+) -> ModelReport:
+    from printapp.texture import palette_colours
+
+    texture = fitted_texture(m, values, scale_mm, seed)
+    s = synthesise(texture, photo.lum.shape, scale_mm)
+    texture = fitted_texture(m, values, scale_mm, seed, quantile_palette(s, values["sign"], photo))
+    rgb = palette_colours(s, texture)
+    lum = rgb @ LUMA
+    fit_halves = halves_distance(half_stats(lum, rgb), photo_halves_stats)
+    r = ratios(fit_halves, photo_halves)
+    return ModelReport(
+        name=m.name,
+        values=values,
+        texture=texture,
+        params=reported_params(m, values, texture, photo),
+        halves=fit_halves,
+        ratios=r,
+        score=score_of(r, min(photo.lum.shape)),
+        objective=math.nan,
+        evaluations=0,
+        trace=[],
+        seconds=0.0,
+        lum=lum,
+        rgb=rgb,
+    )
+
+
+__all__ = ["LOW_SCORE", "MEASURES", "FitResult", "ModelReport", "fit_photo", "score_of"]

@@ -1,124 +1,41 @@
-"""The noise models that ``printapp fit`` fits, the statistics they are matched on, and the optimiser.
+"""The texture models that ``printapp fit`` fits, each a printable texture kind on the project's own noise.
 
-Every model gives a scalar field ``s`` on the photo's pixel grid, built from the
-project's sparse convolution noise (``noise``); the photo's luminance is modelled as
-``L = offset + A s`` (clipped to the photo's range), and a 1-D palette of the photo's
-colours, ordered along ``L``, colours it.
+Every model gives a scalar field ``s`` on the photo's pixel grid (pixel centres at
+``i + 1/2``, rows upwards, lengths in analysed pixels); the photo's luminance is ``s``
+mapped onto the photo's luminance distribution rank by rank (exact histogram matching,
+:func:`printapp.fit_measures.match_values`; the ``sign`` says whether high ``s`` is bright),
+and a palette of the photo's colours ordered along luminance colours it.
 
-* ``fbm``: ``s = sum_{i<octaves} lacunarity^(-H i) noise(p lacunarity^i / F)``;
-* ``turbulence``: ``s = sum_{i<octaves} 2^-i |noise(2^i p / F)|`` (octaves 0 .. octaves - 1:
-  a first octave ``low > 0`` is the same texture with ``F / 2^low``, so ``low`` is 0);
-* ``marble``: ``s = ((1 + sin(2 pi (n . p) / period + k T(p))) / 2)^sharpness`` with ``T``
-  the turbulence above (:mod:`noise.veins`).
+* ``fbm``: ``s = sum_i lacunarity^(-H i) noise(lacunarity^i p / F)``, fitted on its
+  expected spectrum (no synthesis; :mod:`printapp.fit_spectral`);
+* ``turbulence``: ``s = sum_i 2^-i |noise(2^i p / F)|``, likewise;
+* ``marble``: Perlin's marble, ``s = ((1 + sin(2 pi (n . p) / period + k T(p / F))) / 2)^sharpness``
+  with ``T`` the turbulence (:mod:`noise.veins`); the veins' direction ``n`` from the
+  structure tensor (Bigun & Granlund 1987) and their period from the spectrum's mean
+  frequency across them, in closed form; the rest by synthesis;
+* ``veined``: branching veins, a domain-warped ridged multifractal over noise or cellular
+  edges, over an fBm ground (:mod:`noise.ridged`, the ``veined`` texture kind), by synthesis.
 
-``p`` is in pixels (pixel centres at ``i + 1/2``), ``F`` the base feature size in pixels.
-
-What is matched (the objective, summed with equal weights):
-
-1. the power spectrum in polar bins (radius x angle): RMS distance of the log10 spectra
-   (:func:`noise.spectra.log_spectrum_distance`), which carries roughness (the slope),
-   frequencies (where power sits) and orientation (the angular split);
-2. the 1-Wasserstein distance between the luminance distributions, in units of the
-   photo's standard deviation;
-3. grey-level co-occurrence statistics (scikit-image's ``graycomatrix`` on 16 levels
-   equalised on the photo, at several offsets and four directions): contrast,
-   homogeneity and correlation, which carry what the sine and the turbulence control
-   in a veined marble, the width and continuity of the veins.
-
-``offset`` and ``A`` follow in closed form from the photo's mean and standard deviation
-(moment matching; the sign of ``A`` is searched), the rest is searched: a fixed
-quasi-random scan of the box, then Nelder-Mead (SciPy) from the best starts. The
-objective is evaluated on the photo downsampled to about 128 px, where each octave is
-read from a precomputed, spline-interpolated noise field (:class:`NoiseLookup`, about 1 %
-from the exact noise); the octave count and the final statistics are computed at the
-analysed resolution with the exact noise. Everything is seeded: a fit is deterministic.
+While fitting, the noise is read from tables (:class:`noise.tables.NoiseTable`: periodic
+Gaussian stand-ins with the noise's spectrum); the fitted texture is then evaluated
+exactly, through the same code as a design's relief.
 """
 
 from __future__ import annotations
 
 import math
-from abc import ABC, abstractmethod
-from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-import noise
-from noise.spectra import (
-    dominant_orientation,
-)
+from noise.ridged import NOISE_STD
+from noise.spectra import dominant_orientation
 
-MODELS = ("fbm", "turbulence", "marble")
-OBJECTIVE_SIDE = 128
-"""Longer side (px) of the image the optimiser's objective is evaluated on."""
-MAX_OCTAVES = 8
-_LOOKUP_STEP = 1.0 / 16.0  # noise units between samples of the precomputed field
-
-
-# ---------------------------------------------------------------------------------------------
-# Noise on grids: exact, or from a precomputed field
-
-
-class NoiseLookup:
-    """Sparse convolution noise on z = 0 read from a precomputed, finely sampled field.
-
-    The field is sampled every 1/16 noise unit over ``[0, extent]^2`` once; each octave
-    of a model is then one bilinear interpolation, several times cheaper than evaluating
-    the kernel sums at coarse sampling. The error against the exact noise is about 2 %
-    of its standard deviation (tests check it), below what the objective resolves.
-    """
-
-    def __init__(self, extent: float, seed: int) -> None:
-        m = int(math.ceil(extent / _LOOKUP_STEP)) + 4
-        axis = np.arange(m) * _LOOKUP_STEP
-        self.extent = (m - 2) * _LOOKUP_STEP
-        self.values = noise.sparse_convolution_grid(axis, axis, seed=seed)
-
-    def __call__(self, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
-        if max(float(xs.max()), float(ys.max())) > self.extent or min(float(xs.min()), float(ys.min())) < 0:
-            raise ValueError("coordinates beyond the precomputed noise field")
-        # Bilinear on a grid: separable weights, four gathers.
-        fx, fy = xs / _LOOKUP_STEP, ys / _LOOKUP_STEP
-        ix, iy = fx.astype(np.int64), fy.astype(np.int64)
-        wx, wy = (fx - ix)[None, :], (fy - iy)[:, None]
-        v = self.values
-        top = v[np.ix_(iy, ix)] * (1 - wx) + v[np.ix_(iy, ix + 1)] * wx
-        bottom = v[np.ix_(iy + 1, ix)] * (1 - wx) + v[np.ix_(iy + 1, ix + 1)] * wx
-        return top * (1 - wy) + bottom * wy
-
-
-def exact_noise(seed: int) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
-    """Sparse convolution noise on the grid xs by ys, evaluated exactly (the grid fast path)."""
-
-    def evaluate(xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
-        return noise.sparse_convolution_grid(xs, ys, seed=seed)
-
-    return evaluate
-
-
-@dataclass(frozen=True)
-class Grid:
-    """Pixel centres of an image in the analysed image's pixels: ``xs`` (columns), ``ys`` (rows, y up)."""
-
-    xs: np.ndarray
-    ys: np.ndarray
-    pitch_px: float
-
-    @classmethod
-    def of(cls, shape: tuple[int, int], analysed_shape: tuple[int, int]) -> Grid:
-        ny, nx = shape
-        sy, sx = analysed_shape[0] / ny, analysed_shape[1] / nx
-        return cls((np.arange(nx) + 0.5) * sx, (np.arange(ny) + 0.5) * sy, max(sx, sy))
-
-
-def kept_octaves(octaves: int, lacunarity: float, feature_px: float, pitch_px: float) -> int:
-    """Octaves of a sum kept at a sampling pitch: those whose cells span at least two samples."""
-    return noise.octaves_for_pitch(octaves, lacunarity, pitch_px / feature_px)
-
-
-# ---------------------------------------------------------------------------------------------
-# The models
+MODELS = ("fbm", "turbulence", "marble", "veined")
+SYNTHESISED = ("marble", "veined")
+"""Models fitted on syntheses (the others on their expected spectrum)."""
+MAX_OCTAVES = 10
 
 
 @dataclass(frozen=True)
@@ -131,167 +48,364 @@ class Param:
     log: bool = False
 
     def value(self, u: float) -> float:
-        u = min(max(u, 0.0), 1.0)
+        u = min(max(float(u), 0.0), 1.0)
         if self.log:
             return float(math.exp(math.log(self.lo) + u * (math.log(self.hi) - math.log(self.lo))))
         return float(self.lo + u * (self.hi - self.lo))
 
     def unit(self, value: float) -> float:
         if self.log:
-            return (math.log(value) - math.log(self.lo)) / (math.log(self.hi) - math.log(self.lo))
-        return (value - self.lo) / (self.hi - self.lo)
+            u = (math.log(value) - math.log(self.lo)) / (math.log(self.hi) - math.log(self.lo))
+        else:
+            u = (value - self.lo) / (self.hi - self.lo)
+        return min(max(u, 0.0), 1.0)
 
 
-SKEW = Param("skew", -3.0, 3.0)
-"""The luminance curve's skew (:class:`ValueMap`), searched with every model."""
+@dataclass(frozen=True)
+class Grid:
+    """Pixel centres of an image in analysed pixels: ``xs`` (columns), ``ys`` (rows, y up)."""
+
+    xs: np.ndarray
+    ys: np.ndarray
+    pitch_px: float
+
+    @classmethod
+    def of(cls, shape: tuple[int, int], analysed_shape: tuple[int, int], origin=(0.0, 0.0)) -> Grid:
+        """A ``shape`` image covering the analysed image (moved to ``origin``, in analysed px)."""
+        ny, nx = shape
+        sy, sx = analysed_shape[0] / ny, analysed_shape[1] / nx
+        return cls(
+            origin[1] + (np.arange(nx) + 0.5) * sx, origin[0] + (np.arange(ny) + 0.5) * sy, max(sx, sy)
+        )
+
+    def points(self) -> np.ndarray:
+        xx, yy = np.meshgrid(self.xs, self.ys)
+        return np.column_stack([xx.ravel(), yy.ravel()])
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return self.ys.size, self.xs.size
 
 
-class Model(ABC):
-    """A noise model: its searched parameters, its discrete choices and its scalar field."""
+@dataclass(frozen=True)
+class Hints:
+    """What the photo says before any fitting: its size, and the direction and coherence of its structure."""
+
+    shape: tuple[int, int]
+    angle: float
+    """Direction (rad, [0, pi), from +x towards +y) the photo's structure runs along."""
+    coherence: float
+    period_px: float
+    """Inverse of the spectrum's mean frequency across that direction (px): the veins' period if any."""
+    polarity: float = 0.0
+    """+1 where the photo's strongest thin lines are bright, -1 dark, 0 where neither stands out."""
+    ground: dict[str, Any] | None = None
+    """An fBm fitted to the photo's spectrum (feature_px, H, ...), where the veins' ground starts."""
+
+    @classmethod
+    def of(cls, lum: np.ndarray, strengths: np.ndarray | None = None) -> Hints:
+        """Hints from a luminance image (and its line strengths at 1, 2, 4... px, if known)."""
+        gradient_angle, coherence = dominant_orientation(lum)
+        angle = float(np.mod(gradient_angle + math.pi / 2, math.pi))
+        return cls(lum.shape, angle, coherence, _peak_period(lum, gradient_angle), _polarity(lum, strengths))
+
+
+POLARITY_THRESHOLD = 0.03
+"""Decades by which one polarity's strongest lines must outdo the other's to decide the veins' sign."""
+
+
+def _polarity(lum: np.ndarray, strengths: np.ndarray | None = None) -> float:
+    """Whether the strongest thin lines are bright (+1) or dark (-1): the 99th percentiles of the line
+    strengths (:mod:`noise.line_filters`) at 1, 2 and 4 px, dark over bright, in decades, averaged."""
+    from noise.line_filters import line_strengths
+
+    strengths = line_strengths(lum, (1.0, 2.0, 4.0)) if strengths is None else strengths[:3]
+    tails = np.quantile(strengths.reshape(3, 2, -1), 0.99, axis=2) + 1e-12
+    asymmetry = float(np.mean(np.log10(tails[:, 1] / tails[:, 0])))
+    if abs(asymmetry) < POLARITY_THRESHOLD:
+        return 0.0
+    return -1.0 if asymmetry > 0 else 1.0
+
+
+def _peak_period(lum: np.ndarray, across: float) -> float:
+    """The veins' period (px): the inverse of the power-weighted mean frequency across them.
+
+    Over the half of the frequency plane facing the direction ``across`` (the wave
+    vector's), ``1 / (sum P(f) f.n / sum P(f))``, then the same within a factor two of that
+    (twice more), so that the power near zero frequency does not pull it down. For a
+    marble ``sin(2 pi u / period + k T)`` with stationary turbulence ``T`` the power sits in
+    a lobe centred near ``1 / period`` however strong the turbulence (the mean of
+    ``dT/du`` is zero), where the peak alone wanders between realisations.
+    """
+    from noise.spectra import periodogram
+
+    power = periodogram(lum)
+    ny, nx = lum.shape
+    fy = np.fft.fftfreq(ny)[:, None]
+    fx = np.fft.fftfreq(nx)[None, :]
+    projected = fx * math.cos(across) + fy * math.sin(across)
+    lo, hi = 0.0, 1.0
+    mean = 0.0
+    for _ in range(3):
+        weight = np.where((projected > lo) & (projected < hi), power, 0.0)
+        total = float(np.sum(weight))
+        if total <= 0:
+            return float(max(lum.shape))
+        mean = float(np.sum(weight * projected)) / total
+        lo, hi = mean / 2.0, mean * 2.0
+    return float(min(max(1.0 / mean, 2.0), 4.0 * max(lum.shape)))
+
+
+class Model:
+    """A model: its searched parameters, discrete choices, field and design texture (lengths in px)."""
 
     name = ""
 
-    def __init__(self, shape: tuple[int, int], lum: np.ndarray) -> None:
-        self.shape = shape
-        side = max(shape)
-        # Base features up to a quarter of the image: larger ones put the spectrum's knee
-        # (about 0.3 / F cycles per pixel) below the lowest frequency the image resolves.
-        self.feature = Param("feature_px", 2.0 * max(1.0, side / OBJECTIVE_SIDE), side / 4.0, log=True)
+    def __init__(self, hints: Hints) -> None:
+        self.hints = hints
+        self.side = float(max(hints.shape))
 
-    @abstractmethod
     def params(self) -> list[Param]:
-        """The continuous parameters the optimiser searches, each mapped to [0, 1]."""
+        return []
+
+    def choices(self) -> list[dict[str, Any]]:
+        return [{"sign": 1.0}, {"sign": -1.0}]
 
     def decode(self, u: np.ndarray, choice: dict[str, Any]) -> dict[str, Any]:
-        """Parameter values from unit-box coordinates ``u`` and a discrete choice.
-
-        ``choice["drop"]`` asks for that many octaves fewer than the analysed image
-        resolves at this feature size (octaves of less than two pixels are never kept).
-        """
         values = {p.name: p.value(float(x)) for p, x in zip(self.params(), u, strict=True)}
-        values |= {k: v for k, v in choice.items() if k != "drop"}
-        if "drop" in choice:
-            values["octaves"] = max(1, self.max_octaves(values, 1.0) - choice["drop"])
-        return values
+        return values | choice
 
     def encode(self, values: dict[str, Any]) -> np.ndarray:
         return np.array([p.unit(values[p.name]) for p in self.params()])
 
-    @abstractmethod
-    def choices(self) -> list[dict[str, Any]]:
-        """The discrete settings the scan tries (octave counts, signs)."""
+    def starts(self) -> list[dict[str, Any]]:
+        """Parameter values the photo suggests, scanned first (besides the quasi-random scan)."""
+        return []
 
-    @abstractmethod
-    def field(self, values: dict[str, Any], grid: Grid, octave_noise) -> np.ndarray:
-        """The model's scalar field on ``grid`` for parameter ``values``."""
+    def neutral(self) -> dict[str, Any]:
+        """The middle of the search box: what an image with nothing to fit (a constant one) gets."""
+        return self.decode(np.full(len(self.params()), 0.5), self.choices()[0])
 
-    def max_octaves(self, values: dict[str, Any], pitch_px: float) -> int:
-        return kept_octaves(MAX_OCTAVES, values.get("lacunarity", 2.0), values["feature_px"], pitch_px)
+    def field(self, values: dict[str, Any], grid: Grid, sampler, seed: int) -> np.ndarray:
+        raise NotImplementedError
 
-
-class OctaveModel(Model):
-    """A model whose field is a finishing step applied to a sum of octaves of noise."""
-
-    absolute = False
-
-    def lacunarity(self, values: dict[str, Any]) -> float:
-        return 2.0
-
-    def weight(self, values: dict[str, Any]) -> float:
-        return 0.5
-
-    def finish(self, total: np.ndarray, values: dict[str, Any], grid: Grid) -> np.ndarray:
-        return total
-
-    def field(self, values, grid, octave_noise) -> np.ndarray:
-        return self.cumulative(values, grid, octave_noise, every=False)[-1]
-
-    def cumulative(self, values, grid, octave_noise, every: bool = True) -> list[np.ndarray]:
-        """The field with 1, 2, ... octaves (as many as ``values`` asks and ``grid`` resolves).
-
-        With ``every`` false, only the field with all of them.
-        """
-        lac = self.lacunarity(values)
-        n = kept_octaves(values["octaves"], lac, values["feature_px"], grid.pitch_px)
-        weight = self.weight(values)
-        total = np.zeros((grid.ys.size, grid.xs.size))
-        out = []
-        for i in range(n):
-            scale = lac**i / values["feature_px"]
-            term = octave_noise(grid.xs * scale, grid.ys * scale)
-            total += weight**i * (np.abs(term) if self.absolute else term)
-            if every or i == n - 1:
-                out.append(self.finish(total, values, grid))
-        return out
+    def texture_fields(self, values: dict[str, Any]) -> dict[str, Any]:
+        """``[texture]`` fields (lengths in analysed px) of the kind that prints this model."""
+        raise NotImplementedError
 
 
-class FBM(OctaveModel):
+def _octave_sum(
+    grid: Grid, sampler, feature: float, octaves: int, lacunarity: float, weight: float, absolute: bool
+):
+    pts = grid.points() / feature
+    n = min(octaves, _octaves_at(feature, grid.pitch_px, lacunarity))
+    i = np.arange(n)
+    return sampler.octave_sum(pts, 0, lacunarity**i, weight**i, np.zeros((n, 2)), absolute).reshape(
+        grid.shape
+    )
+
+
+class FBM(Model):
     name = "fbm"
 
-    def params(self) -> list[Param]:
-        return [self.feature, Param("H", 0.05, 1.0), Param("lacunarity", 1.6, 3.2, log=True), SKEW]
+    def neutral(self):
+        return {"feature_px": self.side / 4, "H": 0.5, "lacunarity": 2.0, "octaves": 4, "sign": 1.0}
 
-    def choices(self) -> list[dict[str, Any]]:
-        return [{"drop": d, "sign": s} for d in (0, 2) for s in (1.0, -1.0)]
+    def field(self, values, grid, sampler, seed):
+        lac = values["lacunarity"]
+        return _octave_sum(
+            grid, sampler, values["feature_px"], values["octaves"], lac, lac ** -values["H"], False
+        )
 
-    def lacunarity(self, values: dict[str, Any]) -> float:
-        return values["lacunarity"]
+    def texture_fields(self, values):
+        return {
+            "kind": "fbm",
+            "feature_size_mm": values["feature_px"],
+            "octaves": int(values["octaves"]),
+            "lacunarity": values["lacunarity"],
+            "H": values["H"],
+        }
 
-    def weight(self, values: dict[str, Any]) -> float:
-        return values["lacunarity"] ** (-values["H"])
 
-    def finish(self, total, values, grid) -> np.ndarray:
-        return total.copy()
-
-
-class Turbulence(OctaveModel):
+class Turbulence(Model):
     name = "turbulence"
-    absolute = True
 
-    def params(self) -> list[Param]:
-        return [self.feature, SKEW]
+    def neutral(self):
+        return {"feature_px": self.side / 4, "octaves": 4, "sign": 1.0}
 
-    def choices(self) -> list[dict[str, Any]]:
-        counts: list[dict[str, Any]] = [{"drop": 0}, {"drop": 2}, {"octaves": 1}]
-        return [{**n, "sign": s} for n in counts for s in (1.0, -1.0)]
+    def field(self, values, grid, sampler, seed):
+        return _octave_sum(grid, sampler, values["feature_px"], values["octaves"], 2.0, 0.5, True)
 
-    def finish(self, total, values, grid) -> np.ndarray:
-        return total.copy()
+    def texture_fields(self, values):
+        return {
+            "kind": "turbulence",
+            "feature_size_mm": values["feature_px"],
+            "low": 0,
+            "high": int(values["octaves"]) - 1,
+        }
 
 
-class Marble(OctaveModel):
+def _octaves_at(feature_px: float, pitch_px: float, lacunarity: float = 2.0) -> int:
+    """Octaves whose cells span at least two samples of ``pitch_px``."""
+    n = 1
+    while n < MAX_OCTAVES and feature_px / lacunarity**n >= 2.0 * pitch_px:
+        n += 1
+    return n
+
+
+class Marble(Model):
+    """Perlin's marble: direction and period from the photo, closed form (:class:`Hints`); the rest searched.
+
+    Both are first-order properties of the spectrum that the synthesis measures resolve
+    less well than the closed forms do (the orientation bands are 22.5 degrees wide; the
+    period moves the spectrum's lobe by less than a half-octave bin).
+    """
+
     name = "marble"
-    absolute = True
-
-    def __init__(self, shape: tuple[int, int], lum: np.ndarray) -> None:
-        super().__init__(shape, lum)
-        side = max(shape)
-        # The veins' direction in closed form: the structure tensor's dominant gradient
-        # runs across them (Bigun & Granlund 1987). It is within a few degrees on veined
-        # textures, where the binned spectra and GLCM directions could not tell 10 degrees
-        # apart; on isotropic ones (coherence near 0) the direction does not matter.
-        gradient_angle, self.coherence = dominant_orientation(lum)
-        self.angle = float(np.mod(gradient_angle + math.pi / 2, math.pi))
-        self.period = Param("period_px", side / 16.0, 4.0 * side, log=True)
-        self.strength = Param("strength", 0.05, 60.0, log=True)
-        self.sharpness = Param("sharpness", 1.0, 40.0, log=True)
-        self.feature = Param("feature_px", self.feature.lo, 2.0 * side, log=True)
+    ANGLE_BOX = math.radians(8.0)
 
     def params(self) -> list[Param]:
-        return [self.period, self.strength, self.feature, self.sharpness, SKEW]
+        side = self.side
+        return [
+            Param("strength", 0.05, 40.0, log=True),
+            Param("feature_px", 4.0, 2.0 * side, log=True),
+            Param("sharpness", 1.0, 24.0, log=True),
+        ]
 
-    def decode(self, u: np.ndarray, choice: dict[str, Any]) -> dict[str, Any]:
-        return {**super().decode(u, choice), "angle": self.angle}
+    def decode(self, u, choice):
+        values = super().decode(u, choice)
+        values.setdefault("period_px", self.hints.period_px)
+        values["angle"] = self.hints.angle
+        return values
 
-    def choices(self) -> list[dict[str, Any]]:
-        return [{"drop": d, "sign": s} for d in (0, 3) for s in (1.0, -1.0)]
+    def starts(self) -> list[dict[str, Any]]:
+        """Turbulence of three strengths."""
+        return [{"strength": k, "feature_px": self.side / 6, "sharpness": 1.0} for k in (0.5, 2.0, 6.0)]
 
-    def finish(self, total, values, grid) -> np.ndarray:
+    def field(self, values, grid, sampler, seed):
+        feature = values["feature_px"]
+        n = _octaves_at(feature, grid.pitch_px)
+        pts = grid.points() / feature
+        i = np.arange(n)
+        t = sampler.octave_sum(pts, 0, 2.0**i, 2.0**-i, np.zeros((n, 2)), True)
         a = values["angle"]
-        along = -math.sin(a) * grid.xs[None, :] + math.cos(a) * grid.ys[:, None]
-        v = 0.5 * (1.0 + np.sin(2.0 * math.pi * along / values["period_px"] + values["strength"] * total))
-        return v ** values["sharpness"]
+        xx, yy = pts[:, 0] * feature, pts[:, 1] * feature
+        along = -math.sin(a) * xx + math.cos(a) * yy
+        v = 0.5 * (1.0 + np.sin(2.0 * math.pi * along / values["period_px"] + values["strength"] * t))
+        return (v ** values["sharpness"]).reshape(grid.shape)
+
+    def texture_fields(self, values):
+        return {
+            "kind": "marble",
+            "feature_size_mm": values["feature_px"],
+            "low": 0,
+            "high": MAX_OCTAVES - 1,
+            "vein_angle_rad": float(np.mod(values["angle"], math.pi)),
+            "vein_period_mm": values["period_px"],
+            "turbulence_strength": values["strength"],
+            "vein_sharpness": values["sharpness"],
+        }
 
 
-def make_model(name: str, shape: tuple[int, int], lum: np.ndarray) -> Model:
-    return {"fbm": FBM, "turbulence": Turbulence, "marble": Marble}[name](shape, lum)
+class Veined(Model):
+    """Branching veins over an fBm ground (the ``veined`` kind)."""
+
+    name = "veined"
+    WIDTH = {"ridged": (0.04, 3.0), "cellular": (0.008, 0.6)}
+
+    def params(self) -> list[Param]:
+        side = self.side
+        return [
+            Param("vein_px", 8.0, 0.5 * side, log=True),
+            Param("warp", 0.0, 1.2),
+            Param("width_u", 0.0, 1.0),
+            Param("gain", 0.25, 6.0, log=True),
+            Param("fade", 0.0, 2.0),
+            Param("ground_weight", 0.01, 0.6, log=True),
+            Param("feature_px", 4.0, 2.0 * side, log=True),
+            Param("H", -1.0, 1.0),
+            Param("stretch", 1.0, self.max_stretch(), log=True),
+        ]
+
+    def max_stretch(self) -> float:
+        """The most the veins may be stretched: twice what the photo's coherence implies, plus 0.15.
+
+        Noise stretched ``e`` times has the structure tensor's coherence
+        ``c = (e^2 - 1) / (e^2 + 1)``, so a photo of coherence ``c`` is stretched about
+        ``sqrt((1 + c) / (1 - c))`` times.
+        """
+        c = min(max(self.hints.coherence, 0.0), 0.95)
+        implied = math.sqrt((1.0 + c) / (1.0 - c))
+        return min(1.15 + 2.0 * (implied - 1.0), 6.0)
+
+    def choices(self):
+        """Both networks; the sign the photo's strongest lines have (both where it cannot tell)."""
+        signs = (self.hints.polarity,) if self.hints.polarity else (1.0, -1.0)
+        return [{"network": n, "sign": s} for n in ("cellular", "ridged") for s in signs]
+
+    def decode(self, u, choice):
+        values = super().decode(u, choice)
+        lo, hi = self.WIDTH[values["network"]]
+        values["width"] = float(math.exp(math.log(lo) + values["width_u"] * math.log(hi / lo)))
+        values["angle"] = self.hints.angle
+        values["sharpness"] = 2.0  # Musgrave's square: the width alone sets how thin veins are
+        values["vein_H"] = 1.0  # Musgrave's H: finer veins weigh as much less as they are finer
+        return values
+
+    def starts(self) -> list[dict[str, Any]]:
+        """Marble-like networks: three cell sizes (an eighth, a quarter and two fifths of the photo) and two
+        widths, moderately warped and faded, a faint ground with the photo's own spectrum (fBm fit)."""
+        ground = self.hints.ground or {"feature_px": self.side / 8, "H": 0.5}
+        return [
+            {
+                "vein_px": self.side * fraction,
+                "warp": 0.6,
+                "width_u": width_u,
+                "gain": 1.5,
+                "fade": 0.5,
+                "ground_weight": 0.18,
+                "feature_px": min(max(ground["feature_px"], 4.0), 2.0 * self.side),
+                "H": min(max(ground["H"], -1.0), 1.0),
+                "stretch": min(1.1, self.max_stretch()),
+            }
+            for fraction in (1 / 8, 1 / 4, 2 / 5)
+            for width_u in (0.45, 0.65)
+        ]
+
+    def texture_fields(self, values):
+        return {
+            "kind": "veined",
+            "feature_size_mm": values["feature_px"],
+            "octaves": MAX_OCTAVES,
+            "lacunarity": 2.0,
+            "ground_H": values["H"],
+            "vein_network": values["network"],
+            "vein_scale_mm": values["vein_px"],
+            "vein_octaves": MAX_OCTAVES,
+            "vein_gain": values["gain"],
+            "vein_H": values["vein_H"],
+            "vein_width": values["width"],
+            "vein_sharpness": values["sharpness"],
+            "vein_warp": values["warp"],
+            "vein_layers": 1,
+            "vein_fade": values["fade"],
+            "ground_weight": values["ground_weight"],
+            "stretch": values["stretch"],
+            "angle_rad": float(np.mod(values["angle"], math.pi)),
+        }
+
+    def field(self, values, grid, sampler, seed):
+        from printapp.design import Texture
+        from printapp.texture_kinds import stretch_to_noise_units, veined_values
+
+        texture = Texture.model_construct(**{**self.texture_fields(values), "seed": seed})
+        pts = stretch_to_noise_units(grid.points(), texture)
+        pitch = grid.pitch_px / texture.feature_size_mm
+        return veined_values(pts, texture, pitch, sampler=sampler).reshape(grid.shape)
+
+
+def make_model(name: str, hints: Hints) -> Model:
+    return {"fbm": FBM, "turbulence": Turbulence, "marble": Marble, "veined": Veined}[name](hints)
+
+
+__all__ = ["MODELS", "NOISE_STD", "Grid", "Hints", "Model", "Param", "make_model"]

@@ -198,13 +198,25 @@ def palette_colours(values: np.ndarray, texture: Texture) -> np.ndarray:
     ``palette_range[1]`` (which may run downwards) and interpolated linearly; values
     beyond the range take the end colours. Without a palette, a grey ramp from black to
     white; without a range, 0..1 for marble and the values' own minimum..maximum otherwise.
+    With ``palette_values``, colour ``k`` sits at value ``palette_values[k]`` instead. The range
+    and the values are given for veins raised (marble, veined): with ``veins = "sunk"`` the
+    texture's values and they are both negated, so the colours stay with the veins.
     """
     palette = texture.palette or ("#000000", "#ffffff")
     colours = np.array([[int(c[i : i + 2], 16) / 255.0 for i in (1, 3, 5)] for c in palette])
+    sign = vein_sign(texture)
+    if texture.palette_values is not None:
+        # Knots at given values; the values are the raised veins', like the range below.
+        knots = sign * np.asarray(texture.palette_values, dtype=np.float64)
+        if knots[-1] < knots[0]:
+            knots, colours = knots[::-1], colours[::-1]
+        v = np.asarray(values, dtype=np.float64)
+        return np.stack([np.interp(v, knots, colours[:, c]) for c in range(3)], axis=-1)
     if texture.palette_range is not None:
-        lo, hi = texture.palette_range
+        # The range is the raised veins' values: sinking them negates the values, and the range.
+        lo, hi = (sign * v for v in texture.palette_range)
     elif texture_kind(texture.kind).unit_range:
-        lo, hi = 0.0, 1.0
+        lo, hi = 0.0, sign
     else:
         lo, hi = float(values.min()), float(values.max())
     if hi == lo:
@@ -228,7 +240,8 @@ def write_texture_from_file(path: Path, out: Path, size: int, width_mm: float | 
     """Write the [texture] of a design or fragment file as an image of ``size`` px over ``width_mm``.
 
     ``.png`` gets the colours of its palette (8-bit sRGB, row 0 at the top), ``.npy`` the
-    texture's values (marble: its [0, 1] value). The square starts at the origin, with
+    texture's values, as a design's relief takes them (sunk veins negative). The square starts at the
+    origin, with
     pixel centres at ``(i + 1/2) width / size``, as ``printapp fit`` synthesised it; the
     width defaults to the design's tile width (20 mm for a fragment). Returns a one-line
     summary.
@@ -252,7 +265,7 @@ def write_texture_from_file(path: Path, out: Path, size: int, width_mm: float | 
     pitch = width_mm / size
     axis = (np.arange(size) + 0.5) * pitch
     texture = design.texture
-    values = vein_sign(texture) * evaluate_texture_grid(axis, axis, texture, pitch)
+    values = evaluate_texture_grid(axis, axis, texture, pitch)
     buffer = io.BytesIO()
     if out.suffix.lower() == ".npy":
         np.save(buffer, values)

@@ -44,6 +44,20 @@ class TextureParams(Protocol):
     turbulence_strength: float
     vein_sharpness: float
     veins: str
+    vein_network: str
+    vein_scale_mm: float
+    vein_octaves: int
+    vein_gain: float
+    vein_H: float  # noqa: N815 - Musgrave's H, as fBm's
+    vein_width: float
+    vein_warp: float
+    vein_layers: int
+    vein_layer_turn_rad: float
+    vein_layer_scale: float
+    vein_layer_weight: float
+    vein_fade: float
+    ground_weight: float
+    ground_H: float  # noqa: N815 - fBm's H
 
 
 PointsFn = Callable[[np.ndarray, TextureParams, float | None], np.ndarray]
@@ -106,9 +120,17 @@ def _noise_pitch(texture: TextureParams, pitch_mm: float | None) -> float | None
     return None if pitch_mm is None else pitch_mm / texture.feature_size_mm
 
 
+VEINED_KINDS = ("marble", "veined")
+"""Kinds whose ``veins`` key raises or sinks the veins."""
+GROUND_STREAM = 5
+"""The noise stream (:func:`noise.tables.stream_seed`) of a veined texture's fBm ground."""
+FADE_STREAM = 6
+"""The noise stream of the field that fades a veined texture's veins in and out."""
+
+
 def vein_sign(texture: TextureParams) -> float:
-    """Relief sign of a marble: veins (value 1) up when raised, down when sunk; 1 for other kinds."""
-    return -1.0 if texture.kind == "marble" and texture.veins == "sunk" else 1.0
+    """Relief sign of veins: up when raised, down when sunk (marble and veined); 1 for other kinds."""
+    return -1.0 if texture.kind in VEINED_KINDS and texture.veins == "sunk" else 1.0
 
 
 def _vein_options(texture: TextureParams) -> dict[str, float | int]:
@@ -240,6 +262,72 @@ def _marble_grid(
     )
 
 
+def veined_values(
+    pts: np.ndarray, texture: TextureParams, min_pitch: float | None, sampler=None
+) -> np.ndarray:
+    """A veined texture's value (before :func:`vein_sign`) at points in units of ``feature_size_mm``.
+
+    ``veins * exp(vein_fade * g - vein_fade^2 / 2) + ground_weight * ground``: the vein network
+    (:func:`noise.ridged.vein_network`, cells of ``vein_scale_mm``), faded in and out by
+    ``g``, unit-variance fBm (three octaves, H = 1) with cells four times the veins', over a
+    unit-variance fBm ground (cells of ``feature_size_mm``). ``sampler`` replaces the exact
+    noise (``printapp fit`` reads it from tables, :class:`noise.tables.NoiseTable`).
+    """
+    from noise.ridged import fbm_sampled, vein_network
+    from noise.tables import exact_sampler
+
+    if sampler is None:
+        sampler = exact_sampler(texture.seed, texture.impulses, texture.cell_seed)
+    ratio = texture.feature_size_mm / texture.vein_scale_mm
+    values = vein_network(
+        pts * ratio,
+        basis="noise" if texture.vein_network == "ridged" else "cells",
+        octaves=texture.vein_octaves,
+        lacunarity=2.0,
+        H=texture.vein_H,
+        gain=texture.vein_gain,
+        width=texture.vein_width,
+        sharpness=texture.vein_sharpness,
+        warp=texture.vein_warp,
+        layers=texture.vein_layers,
+        layer_turn=texture.vein_layer_turn_rad,
+        layer_scale=texture.vein_layer_scale,
+        layer_weight=texture.vein_layer_weight,
+        seed=texture.seed,
+        min_pitch=None if min_pitch is None else min_pitch * ratio,
+        sampler=sampler,
+    )
+    if texture.vein_fade > 0:
+        fade = texture.vein_fade
+        g = fbm_sampled(pts * (ratio / 4.0), octaves=3, H=1.0, stream=FADE_STREAM, sampler=sampler)
+        values = values * np.exp(fade * g - 0.5 * fade * fade)
+    if texture.ground_weight > 0:
+        values = values + texture.ground_weight * fbm_sampled(
+            pts,
+            octaves=texture.octaves,
+            lacunarity=texture.lacunarity,
+            H=texture.ground_H,
+            stream=GROUND_STREAM,
+            min_pitch=min_pitch,
+            sampler=sampler,
+        )
+    return values
+
+
+def _veined_points(pts: np.ndarray, texture: TextureParams, min_pitch: float | None) -> np.ndarray:
+    return vein_sign(texture) * veined_values(pts, texture, min_pitch)
+
+
+def _veined_grid(
+    x_mm: np.ndarray, y_mm: np.ndarray, texture: TextureParams, pitch_mm: float | None
+) -> np.ndarray:
+    xs, ys = _grid_axes(x_mm, y_mm, texture)
+    xx, yy = np.meshgrid(xs, ys)
+    pts = np.column_stack([xx.ravel(), yy.ravel()])
+    values = vein_sign(texture) * veined_values(pts, texture, _noise_pitch(texture, pitch_mm))
+    return values.reshape(len(y_mm), len(x_mm))
+
+
 def _lic_grid(
     x_mm: np.ndarray, y_mm: np.ndarray, texture: TextureParams, pitch_mm: float | None
 ) -> np.ndarray:
@@ -306,6 +394,32 @@ TEXTURE_KINDS: dict[str, TextureKind] = {
             _marble_points,
             _marble_grid,
             unit_range=True,
+        ),
+        TextureKind(
+            "veined",
+            "branching veins: domain-warped ridged multifractal (noise or cellular cracks) over fBm",
+            (
+                "vein_network",
+                "vein_scale_mm",
+                "vein_octaves",
+                "vein_gain",
+                "vein_H",
+                "vein_width",
+                "vein_sharpness",
+                "vein_warp",
+                "vein_layers",
+                "vein_layer_turn_rad",
+                "vein_layer_scale",
+                "vein_layer_weight",
+                "vein_fade",
+                "ground_weight",
+                "ground_H",
+                "octaves",
+                "lacunarity",
+                "veins",
+            ),
+            _veined_points,
+            _veined_grid,
         ),
     )
 }

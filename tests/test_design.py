@@ -28,7 +28,7 @@ def error_of(data) -> str:
         ({"texture": {"H": 1.5}}, "texture.H: expected a value in (0, 1], got 1.5"),
         (
             {"texture": {"kind": "perlin"}},
-            "texture.kind: expected one of 'scn', 'fbm', 'turbulence', 'lic' or 'marble'",
+            "texture.kind: expected one of 'scn', 'fbm', 'turbulence', 'lic', 'marble' or 'veined'",
         ),
         ({"texture": {"low": 4, "high": 2}}, "'high' (2) must be at least 'low' (4)"),
         ({"texture": "fbm"}, "texture: expected a table, got 'fbm'"),

@@ -8,7 +8,6 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
-from rich.table import Table
 
 from printapp.cli.app import QuietOption, app, out, warn, wrote
 from printapp.errors import PrintappError
@@ -117,16 +116,18 @@ def texture(
     )
 
 
-class FitModel(StrEnum):
-    auto = "auto"
-    fbm = "fbm"
-    turbulence = "turbulence"
-    marble = "marble"
+FitModel = StrEnum("FitModel", {name: name for name in ("auto", "fbm", "turbulence", "marble", "veined")})
 
 
 @app.command()
 def fit(
-    image: Annotated[Path, typer.Argument(help="A photo (PNG, JPEG, WebP, TIFF...) of at least 32 x 32 px.")],
+    image: Annotated[
+        Path,
+        typer.Argument(
+            help="A photo (PNG, JPEG, WebP, TIFF...) of at least 32 x 32 px, or a measured height map "
+            "(.al3d, .x3p, .gwy; .npy with --pitch-mm)."
+        ),
+    ],
     out_path: Annotated[
         Path, typer.Option("--out", "-o", help="The design fragment to write (TOML, a texture table).")
     ] = Path("fitted.toml"),
@@ -134,71 +135,59 @@ def fit(
     scale_mm_per_px: Annotated[
         float | None, typer.Option(help="Millimetres per photo pixel (default: the photo is 20 mm wide).")
     ] = None,
+    pitch_mm: Annotated[
+        float | None, typer.Option(help="Height maps in .npy: the sample spacing (mm; heights in mm).")
+    ] = None,
+    magnify: Annotated[
+        float | None,
+        typer.Option(min=1e-6, help="Height maps: magnify the relief (default: up to the printer's pixel)."),
+    ] = None,
     preview: Annotated[
         Path | None, typer.Option(help="Write the photo and the synthesis side by side (.png).")
     ] = None,
     json_out: Annotated[
         Path | None, typer.Option("--json", help="Write model, parameters and quality measures (.json).")
     ] = None,
-    seed: Annotated[
-        int, typer.Option(min=0, help="Seed of the noise, the optimiser's scan and baselines.")
-    ] = 0,
-    budget: Annotated[int, typer.Option(min=8, max=100000, help="Optimiser evaluations per model.")] = 160,
+    seed: Annotated[int, typer.Option(min=0, help="Seed of the noise (the optimiser's is fixed).")] = 0,
+    budget: Annotated[
+        int | None, typer.Option(min=8, max=100000, help="Coarse evaluations per synthesised model.")
+    ] = None,
     size: Annotated[
         int, typer.Option(min=32, max=4096, help="Longer side the photo is analysed at (px).")
     ] = 512,
+    workers: Annotated[
+        int | None, typer.Option(min=1, max=64, help="Threads for the search (default: the cores).")
+    ] = None,
     quiet: QuietOption = False,
 ) -> None:
-    """Fit procedural noise (fBm, turbulence, veined marble) to a photo, and say how close it comes.
+    """Fit a printable texture (fBm, turbulence, marble, branching veins) to a photo or a measured surface.
 
     Writes a design fragment that `printapp design` prints and `printapp texture --from`
     renders; --preview puts photo and synthesis side by side; --json holds the parameters
-    and the quality measures beside two baselines (random parameters, random phase).
+    and each quality measure as a ratio to the photo's own variation, beside the
+    random-phase baseline.
     """
-    from printapp.fit import fit_photo
-    from printapp.fit_outputs import write_outputs
+    from printapp.fit_outputs import fit_any
     from printapp.progress import StageTimer
 
-    if out_path.suffix.lower() != ".toml":
-        raise PrintappError(f"{out_path}: expected an output file ending in .toml")
-    if preview is not None and preview.suffix.lower() != ".png":
-        raise PrintappError(f"{preview}: expected a preview file ending in .png")
-    if json_out is not None and json_out.suffix.lower() != ".json":
-        raise PrintappError(f"{json_out}: expected a metrics file ending in .json")
     with StageTimer(quiet=quiet) as timer:
-        result = fit_photo(
+        lines, warnings, written = fit_any(
             image,
+            out_path,
+            preview=preview,
+            json_out=json_out,
             model=model.value,
             scale_mm_per_px=scale_mm_per_px,
+            pitch_mm=pitch_mm,
             seed=seed,
             budget=budget,
-            max_side=size,
+            size=size,
+            workers=workers,
+            magnify=magnify,
             timer=timer,
         )
-    written = write_outputs(result, out_path, preview, json_out)
-    metrics = result.metrics()
-    table = Table(
-        "measure",
-        "fit",
-        "random parameters",
-        "random phase",
-        "photo halves",
-        title=f"{image.name}: {metrics['model']} fit, score {metrics['score']:.2f} ({result.seconds:.1f} s)",
-    )
-    measures = metrics["measures"]
-    for key in ("log_spectrum_distance", "wasserstein", "glcm_difference"):
-        table.add_row(
-            key,
-            *(
-                f"{measures[k][key]:.4g}"
-                for k in ("fit", "random_parameters", "random_phase", "photo_halves")
-            ),
-        )
-    out.print(table)
-    params = {k: v for k, v in metrics["params"].items() if k not in ("palette", "palette_range")}
-    out.print(", ".join(f"{k} {v}" for k, v in params.items()))
-    if len(metrics["models"]) > 1:
-        out.print("scores: " + ", ".join(f"{k} {v['score']:.2f}" for k, v in metrics["models"].items()))
-    for message in result.warnings:
+    for line in lines:
+        out.print(line)
+    for message in warnings:
         warn(message)
     wrote(written)

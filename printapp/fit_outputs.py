@@ -164,7 +164,7 @@ def write_surface_outputs(
     """Write a surface's fragment (and preview, metrics): all written first, then renamed into place."""
     import json
 
-    from printapp.exporters import atomic_write_files
+    from printapp.outputs import atomic_write_files
 
     outputs: list[tuple[Path, bytes]] = [(toml_path, surface_toml(surface).encode())]
     if preview_path is not None:

@@ -272,7 +272,7 @@ def predict_file(
     suffix = source.suffix.lower()
     design_ior, design_albedo, design_lobe_error, design_seed = 1.5, 0.8, None, 0
     if suffix == ".toml":
-        from printapp.design import load_design
+        from printapp.design_io import load_design
         from printapp.relief import appearance_field
 
         design = load_design(source)

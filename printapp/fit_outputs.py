@@ -34,7 +34,7 @@ def texture_toml(texture, header: list[str]) -> str:
     """A fragment: comment lines, then the texture's [texture] table in file units."""
     import tomli_w
 
-    from printapp.design import to_file_units
+    from printapp.design_io import to_file_units
 
     dumped = texture.model_dump(mode="python")
     names = [*fragment_keys(texture), "palette", "palette_range", "palette_values"]
@@ -117,7 +117,7 @@ def surface_toml(surface) -> str:
     """A measured surface's fragment: [base], [relief] and [texture] that print the look-alike relief."""
     import tomli_w
 
-    from printapp.design import to_file_units
+    from printapp.design_io import to_file_units
 
     design = surface.design
     m, f = surface.measured, surface.fitted

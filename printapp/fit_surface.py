@@ -198,7 +198,8 @@ def magnified(design, factor: float):
     The relief is the same pattern (noise coordinates are lengths over the feature size),
     its heights and lengths times ``factor``: Sq and Sal scale with it, Sdq (a slope) not.
     """
-    from printapp.design import design_from_dict, to_file_units
+    from printapp.design import design_from_dict
+    from printapp.design_io import to_file_units
 
     data = to_file_units(design.model_dump(mode="python"))
     for table, keys in (("base", ("width_mm", "depth_mm")), ("relief", ("amplitude_mm", "pitch_mm"))):

@@ -19,7 +19,8 @@ from typing import Any
 import numpy as np
 
 from printapp.brdf import brdf_arrays, npz_bytes
-from printapp.design import Design, TileBase, resolved_toml
+from printapp.design import Design, TileBase
+from printapp.design_io import resolved_toml
 from printapp.exporters import png_bytes, stl_bytes, threemf_bytes
 from printapp.mesh import (
     SolidCheck,

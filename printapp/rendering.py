@@ -361,7 +361,7 @@ def render_design_file(
     for it. A named translucent material is rendered as ``printapp design`` renders it. Both
     images are written, or neither.
     """
-    from printapp.design import load_design
+    from printapp.design_io import load_design
     from printapp.errors import PrintappError
     from printapp.exporters import png_bytes
     from printapp.material_design import derive_design_material, render_choice

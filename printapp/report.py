@@ -14,7 +14,8 @@ import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-from printapp.design import Design, resolved_toml
+from printapp.design import Design
+from printapp.design_io import resolved_toml
 from printapp.report_figures import brdf_figure_png
 from printapp.texture_kinds import texture_kind
 

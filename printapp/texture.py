@@ -253,7 +253,7 @@ def write_texture_from_file(path: Path, out: Path, size: int, width_mm: float | 
     """
     import io
 
-    from printapp.design import load_design
+    from printapp.design_io import load_design
     from printapp.errors import PrintappError
     from printapp.outputs import atomic_write_bytes
 

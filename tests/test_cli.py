@@ -282,7 +282,7 @@ def test_bench_noise_checks_the_fast_paths_against_the_plain_kernel(tmp_path):
 
 @pytest.mark.parametrize("example", sorted(p.name for p in (ROOT / "examples").glob("*.toml")))
 def test_every_example_builds_and_passes_verification(tmp_path, example):
-    from printapp.design import load_design
+    from printapp.design_io import load_design
     from printapp.pipeline import run_design
 
     design = load_design(ROOT / "examples" / example)

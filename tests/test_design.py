@@ -4,7 +4,8 @@ import math
 
 import pytest
 
-from printapp.design import Design, DesignError, MeshBase, design_from_dict, load_design, resolved_toml
+from printapp.design import Design, DesignError, MeshBase, design_from_dict
+from printapp.design_io import load_design, resolved_toml
 
 
 def error_of(data) -> str:

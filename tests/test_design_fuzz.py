@@ -4,7 +4,8 @@ import tomli_w
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from printapp.design import Design, DesignError, design_from_dict, load_design
+from printapp.design import Design, DesignError, design_from_dict
+from printapp.design_io import load_design
 
 KEYS = ["name", "base", "texture", "relief", "printer", "material", "appearance", "render", "shape", "path"]
 for model in Design.model_fields.values():

@@ -28,7 +28,8 @@ from noise.spectra import (
 from printapp.bench.reference.perlin_marble import perlin_marble
 from printapp.bench.reference.spectral_fbm import spectral_fbm
 from printapp.cli import app
-from printapp.design import DesignError, load_design
+from printapp.design import DesignError
+from printapp.design_io import load_design
 from printapp.errors import PrintappError
 from printapp.fit import LOW_SCORE, fit_photo
 from printapp.fit_spectral import fit_spectral

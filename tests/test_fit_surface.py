@@ -11,7 +11,7 @@ from scipy.ndimage import gaussian_filter
 from typer.testing import CliRunner
 
 from printapp.cli import app
-from printapp.design import load_design
+from printapp.design_io import load_design
 from printapp.texture import relief_heightfield
 from printapp.topography import lateral, load_corrected, roughness
 

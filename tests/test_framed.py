@@ -507,7 +507,7 @@ def test_without_a_field_a_mesh_stretch_follows_angle_deg_in_the_tangent_planes(
 
 def test_resolved_design_carries_the_frame_settings(tmp_path):
     # (the manifest's relief.frame is checked on the examples, in test_cli)
-    from printapp.design import load_design, resolved_toml
+    from printapp.design_io import load_design, resolved_toml
     from printapp.relief import build_relief
 
     # The cylinder lies along x: z is along the normal on its top and bottom lines (singular there).

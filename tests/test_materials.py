@@ -398,7 +398,7 @@ def test_material_command_bad_input_exits_2(tmp_path, args, message):
 
 @pytest.mark.slow
 def test_translucent_example_renders_a_medium_end_to_end(tmp_path):
-    from printapp.design import load_design, resolved_toml
+    from printapp.design_io import load_design, resolved_toml
 
     text = (ROOT / "examples" / "translucent_tile.toml").read_text()
     small = text.replace("width_px = 320", "width_px = 40").replace("height_px = 240", "height_px = 30")

@@ -15,7 +15,7 @@ from PIL import Image
 from typer.testing import CliRunner
 
 from printapp.cli import app
-from printapp.design import load_design
+from printapp.design_io import load_design
 from printapp.report import metric_rows, report_html, sweep_settings
 
 pytestmark = pytest.mark.slow  # end to end: `make test-fast` leaves these out

@@ -141,7 +141,7 @@ def test_angle_map_through_a_uv_layout():
 def test_image_field_on_a_mesh_design(tmp_path):
     from PIL import Image
 
-    from printapp.design import load_design
+    from printapp.design_io import load_design
     from printapp.pipeline import run_design
 
     samples = __import__("pathlib").Path(__file__).parent.parent / "printapp" / "samples"

@@ -76,7 +76,7 @@ def bench_adaptive(repeats: int) -> StageResult:
     import noise
     from noise.heightfield import HeightField
     from printapp.adaptive_slab import adaptive_slab_arrays
-    from printapp.design import load_default_design
+    from printapp.design_io import load_default_design
     from printapp.slab import slab_arrays
     from printapp.texture import relief_heightfield
 

@@ -74,7 +74,7 @@ def design_tile(side: int = SIDE) -> tuple[np.ndarray, float, float, str]:
     """The default design's relief patch on a ``side x side`` grid: heights (mm), pitches (mm), how."""
     from scipy.ndimage import zoom
 
-    from printapp.design import load_default_design
+    from printapp.design_io import load_default_design
     from printapp.relief import build_relief
 
     patch = build_relief(load_default_design()).patch
@@ -323,7 +323,7 @@ def bench_brdf(repeats: int) -> StageResult:
     from numba import get_num_threads
 
     from printapp.brdf import grey_albedo
-    from printapp.design import load_default_design
+    from printapp.design_io import load_default_design
     from render.gonio import estimate_brdf
 
     stage_start = time.perf_counter()

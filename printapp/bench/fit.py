@@ -70,7 +70,7 @@ def _read(photo: Traversable, max_side: int = 512) -> Photo:
 
 def previous_method(photo: Photo, name: str) -> np.ndarray | None:
     """The previous method's synthesis of a photo (its stored fragment, rendered as ``texture --from``)."""
-    from printapp.design import load_design
+    from printapp.design_io import load_design
     from printapp.fit import synthesise
     from printapp.texture import palette_colours
 

@@ -12,7 +12,7 @@ from printapp.bench.timing import StageResult
 
 def bench_pipeline(repeats: int) -> StageResult:
     """The demo design end to end: median seconds per stage."""
-    from printapp.design import load_default_design
+    from printapp.design_io import load_default_design
     from printapp.pipeline import run_design
 
     design = load_default_design()

@@ -37,7 +37,7 @@ def _summary(name: str, manifest: dict[str, Any]) -> None:
 
 
 def _run(design_path: Path | None, out_dir: Path, force: bool, quiet: bool) -> None:
-    from printapp.design import load_default_design, load_design
+    from printapp.design_io import load_default_design, load_design
     from printapp.pipeline import run_design
 
     if design_path is None:

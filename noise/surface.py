@@ -338,30 +338,46 @@ def _trace_batch(V, F, FN, NBR, T, start_face, h, n_steps, begin, positions, cou
         )
 
 
+@njit(cache=True)
 def _start_faces(vertices: np.ndarray, faces: np.ndarray, field: np.ndarray) -> np.ndarray:
-    """Per vertex, the incident face that the field (column 0) and its opposite (column 1) point into most."""
+    """Per vertex, the incident face that the field (column 0) and its opposite (column 1) point into most.
+
+    The field is written in each corner's edge basis: inside the corner's wedge when both
+    weights are >= 0, and the score is the smaller weight over their length. Corners are
+    visited corner-major (corner c of face f at c * m + f); a later corner wins a tie.
+    """
     n_v, m = vertices.shape[0], faces.shape[0]
-    tri = vertices[faces]
-    v_all = faces.T.ravel()  # corner-major: corner c of face f at c * m + f
-    f_all = np.tile(np.arange(m), 3)
     starts = np.zeros((n_v, 2), dtype=np.int64)
-    for column, sign in ((0, 1.0), (1, -1.0)):
-        scores = np.empty(3 * m)
+    best = np.full((n_v, 2), -np.inf)
+    for column in range(2):
+        sign = 1.0 if column == 0 else -1.0
         for corner in range(3):
-            p = tri[:, corner]
-            e1 = tri[:, (corner + 1) % 3] - p
-            e2 = tri[:, (corner + 2) % 3] - p
-            t = sign * field[faces[:, corner]]
-            # The field in the corner's edge basis: inside the wedge when both weights are >= 0.
-            g11, g12, g22 = (e1 * e1).sum(1), (e1 * e2).sum(1), (e2 * e2).sum(1)
-            det = np.maximum(g11 * g22 - g12 * g12, 1e-300)
-            r1, r2 = (t * e1).sum(1), (t * e2).sum(1)
-            w1 = (g22 * r1 - g12 * r2) / det
-            w2 = (g11 * r2 - g12 * r1) / det
-            scores[corner * m : (corner + 1) * m] = np.minimum(w1, w2) / np.maximum(np.hypot(w1, w2), 1e-300)
-        order = np.lexsort((scores, v_all))
-        last = np.nonzero(np.r_[v_all[order][1:] != v_all[order][:-1], True])[0]
-        starts[v_all[order][last], column] = f_all[order][last]
+            for f in range(m):
+                v = faces[f, corner]
+                a, b = faces[f, (corner + 1) % 3], faces[f, (corner + 2) % 3]
+                e1x, e1y, e1z = (
+                    vertices[a, 0] - vertices[v, 0],
+                    vertices[a, 1] - vertices[v, 1],
+                    vertices[a, 2] - vertices[v, 2],
+                )
+                e2x, e2y, e2z = (
+                    vertices[b, 0] - vertices[v, 0],
+                    vertices[b, 1] - vertices[v, 1],
+                    vertices[b, 2] - vertices[v, 2],
+                )
+                tx, ty, tz = sign * field[v, 0], sign * field[v, 1], sign * field[v, 2]
+                g11 = e1x * e1x + e1y * e1y + e1z * e1z
+                g12 = e1x * e2x + e1y * e2y + e1z * e2z
+                g22 = e2x * e2x + e2y * e2y + e2z * e2z
+                det = max(g11 * g22 - g12 * g12, 1e-300)
+                r1 = tx * e1x + ty * e1y + tz * e1z
+                r2 = tx * e2x + ty * e2y + tz * e2z
+                w1 = (g22 * r1 - g12 * r2) / det
+                w2 = (g11 * r2 - g12 * r1) / det
+                score = min(w1, w2) / max(math.hypot(w1, w2), 1e-300)
+                if score >= best[v, column]:
+                    best[v, column] = score
+                    starts[v, column] = f
     return starts
 
 

@@ -469,13 +469,6 @@ class Design(_Section):
                     f"{max(self.base.width_mm, self.base.depth_mm):g} mm side; "
                     f"expected at most {_MAX_GRID_SIDE}"
                 )
-            # The as-printed relief is read back one printer pixel inside each edge.
-            smallest = 4 * self.printer.profile.pitch_mm
-            if min(self.base.width_mm, self.base.depth_mm) < smallest:
-                raise ValueError(
-                    f"the tile is {self.base.width_mm:g} x {self.base.depth_mm:g} mm; expected at least "
-                    f"{smallest:.3g} mm (four of the {self.printer.profile.label}'s pixels) on each side"
-                )
         return self
 
 

@@ -13,6 +13,7 @@ import trimesh
 
 from noise.heightfield import HeightField
 from printapp.design import Design, MeshBase, TileBase
+from printapp.errors import DesignError
 from printapp.fields import is_tile_field, surface_lic_values
 from printapp.mesh import (
     SolidCheck,
@@ -150,6 +151,11 @@ def as_printed(design_field: HeightField, slices: Slices, base_thickness_mm: flo
     px, py = slices.profile.pitch_x_mm, slices.profile.pitch_y_mm
     cols = np.nonzero((xd > px) & (xd < design_field.width_mm - px))[0]
     rows = np.nonzero((yd > py) & (yd < design_field.depth_mm - py))[0]
+    if cols.size == 0 or rows.size == 0:
+        raise DesignError(
+            f"base: the tile is {design_field.width_mm:.4g} x {design_field.depth_mm:.4g} mm, too small to print "
+            f"a relief: expected at least four of the {slices.profile.label}'s {px:.3g} mm pixels a side"
+        )
     window = heights[rows[0] : rows[-1] + 1, cols[0] : cols[-1] + 1]
     ny, nx = design_field.shape
     interpolate = RegularGridInterpolator(

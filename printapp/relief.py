@@ -153,8 +153,9 @@ def as_printed(design_field: HeightField, slices: Slices, base_thickness_mm: flo
     rows = np.nonzero((yd > py) & (yd < design_field.depth_mm - py))[0]
     if cols.size == 0 or rows.size == 0:
         raise DesignError(
-            f"base: the tile is {design_field.width_mm:.4g} x {design_field.depth_mm:.4g} mm, too small to print "
-            f"a relief: expected at least four of the {slices.profile.label}'s {px:.3g} mm pixels a side"
+            f"base: the tile is {design_field.width_mm:.4g} x {design_field.depth_mm:.4g} mm, too small "
+            f"to print a relief: expected at least four of the {slices.profile.label}'s {px:.3g} mm "
+            "pixels a side"
         )
     window = heights[rows[0] : rows[-1] + 1, cols[0] : cols[-1] + 1]
     ny, nx = design_field.shape

@@ -141,7 +141,7 @@ def test_output_folder_under_a_file_is_not_writable(tmp_path):
 def test_output_folder_that_is_a_file(tmp_path):
     target = tmp_path / "taken"
     target.write_text("x")
-    result = printapp("design", ROOT / "examples" / "fine_matte.toml", "-o", target, "--quiet")
+    result = printapp("design", ROOT / "examples" / "fine_glossy.toml", "-o", target, "--quiet")
     assert result.returncode == 2
     assert "output folder is a file" in result.stderr
     assert target.read_text() == "x"

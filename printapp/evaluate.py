@@ -4,8 +4,8 @@ Three levels, each a pure function of the resolved design (and so cacheable by i
 
 * ``surrogate``: the as-printed relief (sliced and cured as ``printapp design`` makes it)
   and the glossmeter on its facets (:func:`render.facets.facet_appearance`), about a second;
-* ``brdf``: that, and the BRDF traced through the relief (:func:`printapp.rendering.
-  predict_for_design`): the gloss, haze and highlight ``printapp design`` reports;
+* ``brdf``: that, and the gloss, haze and highlight traced through the relief, the numbers
+  ``printapp design`` reports (:func:`traced_metrics`; without the compact model's fit);
 * ``design``: that, and the whole ``printapp design`` run into a folder (model, slices,
   preview, report), whose verification verdict is the point's.
 
@@ -91,6 +91,29 @@ def target_misses(design: Design, metrics: dict[str, float]) -> list[str]:
     return misses
 
 
+def traced_metrics(design: Design, field: Any) -> dict[str, Any]:
+    """The traced gloss, haze and highlight ``printapp design`` reports for ``field``, without the
+    compact model's fit (:func:`render.traced.traced_gloss`; the whole prediction when the design
+    asks for a lobe error, whose ray budget only the whole table sets)."""
+    from printapp.brdf import grey_albedo
+
+    if design.brdf.lobe_error is not None:
+        from printapp.rendering import predict_for_design
+
+        return predict_for_design(design, field).metrics
+    from render.traced import traced_gloss
+
+    return traced_gloss(
+        field,
+        ior=design.material.refractive_index,
+        body_albedo=grey_albedo(design.material.body_albedo),
+        rays=design.brdf.rays,
+        n_theta=design.brdf.theta_bins,
+        n_phi=design.brdf.phi_bins,
+        seed=design.brdf.seed,
+    )
+
+
 def evaluate_design(
     design: Design, level: str = "surrogate", out_dir: str | Path | None = None
 ) -> dict[str, Any]:
@@ -132,10 +155,8 @@ def evaluate_design(
     metrics = {f"surrogate_{k}": _round(surrogate[k]) for k in SURROGATE_METRICS}
     reasons = printability_reasons(resolved)
     if level in ("brdf", "design"):
-        from printapp.rendering import predict_for_design
-
         start = time.perf_counter()
-        traced = predict_for_design(resolved, field).metrics
+        traced = traced_metrics(resolved, field)
         seconds["brdf"] = time.perf_counter() - start
         gloss = traced["gloss_gu"]
         metrics.update(

@@ -71,9 +71,9 @@ def parse_vary(text: str) -> Vary:
             ) from None
         if len(parts) != 3 or not (math.isfinite(start) and math.isfinite(stop)) or not 1 <= n <= 10_000:
             raise PrintappError(f"--vary {key}: expected START:STOP:N with finite ends and 1 <= N <= 10000")
-        integers = all(p.strip().lstrip("+-").isdigit() for p in parts[:2])
         values = [start + (stop - start) * i / (n - 1) if n > 1 else start for i in range(n)]
-        if integers:
+        # Integers when the ends are written as integers and every step lands on one.
+        if all(p.strip().lstrip("+-").isdigit() for p in parts[:2]) and all(v == round(v) for v in values):
             values = [round(v) for v in values]
         return Vary(key, tuple(dict.fromkeys(values)), start, stop)
     values = [_scalar(v) for v in spec.split(",") if v.strip()]

@@ -22,6 +22,7 @@ neighbours (the display's blur) is not modelled: it would soften this texture.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -81,6 +82,9 @@ class ExposedSlices(Slices):
     """(rows, cols) height above the bed each pixel inside the tile is to reach; NaN on the outline."""
     cure: CureModel | None = None
     grey_levels: bool = True
+    sliced_layers: int = 0
+    """Layers of the slicer's own; those above (the top of a relief that ends in a layer's upper
+    half, which PrusaSlicer's slice planes leave out) are lit from the heights alone."""
 
     def _exposed(self, k: int, geometric: np.ndarray) -> np.ndarray:
         """Layer k's grey levels: ``geometric`` (the slicer's, whole window) with the tile's inside relit."""
@@ -110,16 +114,32 @@ class ExposedSlices(Slices):
 
     def coverages(self) -> Any:
         for k, cov in super().coverages():
+            if k >= self.sliced_layers:
+                break
             yield k, self._exposed(k, Slices.grey(self, cov)) / 255.0
+        for k in range(self.sliced_layers, self.n_layers):
+            yield k, self._exposed(k, np.zeros((self.rows, self.cols), dtype=np.uint8)) / 255.0
 
     def grey(self, coverage: np.ndarray) -> np.ndarray:
         return np.round(coverage * 255.0).astype(np.uint8)
 
     def layer_grey(self, k: int, scratch: dict | None = None) -> tuple[np.ndarray, int, int]:
-        part, r0, c0 = super().layer_grey(k, scratch)
         window = np.zeros((self.rows, self.cols), dtype=np.uint8)
-        window[r0 : r0 + part.shape[0], c0 : c0 + part.shape[1]] = part
+        if k < self.sliced_layers:
+            part, r0, c0 = super().layer_grey(k, scratch)
+            window[r0 : r0 + part.shape[0], c0 : c0 + part.shape[1]] = part
         return self._exposed(k, window), 0, 0
+
+    def max_winding(self) -> float:
+        """The slicer's check (:meth:`slicing.layers.Slices.max_winding`) over the layers it sliced."""
+        fields = {name: getattr(self, name) for name in Slices.__dataclass_fields__}
+        fields["heights_mm"] = self.heights_mm[: self.sliced_layers]
+        return Slices(**fields).max_winding()
+
+    def section_areas_mm2(self) -> np.ndarray:
+        """Area each layer lights (mm^2): its grey levels' share of a full pixel, summed."""
+        pixel = self.profile.pitch_x_mm * self.profile.pitch_y_mm
+        return np.array([float(cov.sum()) * pixel for _, cov in self.coverages()])
 
 
 def expose_heightfield(
@@ -166,4 +186,13 @@ def expose_heightfield(
         top = top - pixel_texture_mm * pixel_hash_unit(cc, rr, seed)
     top = np.where(inside_y[:, None] & inside_x[None, :], top, np.nan)
     fields = {name: getattr(geometric, name) for name in Slices.__dataclass_fields__}
-    return ExposedSlices(**fields, target_top_mm=top, cure=cure, grey_levels=grey_levels)
+    # Layers up to the highest height asked: slab k >= 1 ends at ilh + k lh.
+    ilh, lh = profile.initial_layer_height_mm, geometric.layer_height_mm
+    highest = float(np.nanmax(top)) if np.any(np.isfinite(top)) else 0.0
+    needed = 1 + max(0, math.ceil((highest - ilh) / lh - 1e-9))
+    if needed > geometric.n_layers:
+        k = np.arange(geometric.n_layers, needed, dtype=np.float64)
+        fields["heights_mm"] = np.concatenate([geometric.heights_mm, ilh + (k - 0.5) * lh])
+    return ExposedSlices(
+        **fields, target_top_mm=top, cure=cure, grey_levels=grey_levels, sliced_layers=geometric.n_layers
+    )

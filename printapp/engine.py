@@ -139,6 +139,7 @@ class Engine:
             return self._client
         from printapp.memory import budget_bytes
 
+        logging.getLogger("distributed").setLevel(logging.ERROR)  # no INFO lines on closing
         share = max(1, (self.memory_budget or budget_bytes()) // max(1, self.workers))
         env = {
             "NUMBA_NUM_THREADS": "1",
@@ -149,7 +150,7 @@ class Engine:
             n_workers=self.workers,
             threads_per_worker=1,
             processes=True,
-            dashboard_address=None,
+            dashboard_address=":0",  # its HTTP server on a free port (":8787" may be taken)
             silence_logs=logging.ERROR,
             env=env,
         )

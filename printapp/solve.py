@@ -10,14 +10,15 @@ Analysis by synthesis, in rounds (DESIGN.md, "inverse problems"):
    the engine that ``printapp sweep`` uses (:class:`printapp.engine.Engine`, cached), and
    minimises the squared distance of the predictions from the targets (each measured in
    units of :data:`SCALES`; the targets shrunk by a safety margin). A round stops when
-   enough candidates meet the targets, or after ``[solve] evaluations``.
+   enough candidates meet the targets, when its best has not improved for :data:`PATIENCE`
+   batches, or after ``[solve] evaluations``.
 2. **Confirm with the truth.** The best ``[solve] confirm`` candidates are traced
    (:func:`printapp.rendering.predict_for_design`: the BRDF ``printapp design`` reports).
    One that meets every target with the traced values is the answer.
 3. **Correct by the gap.** Otherwise the gap between the tracer and the surrogate at the best
    candidate is taken off the targets the surrogate is asked to meet, every earlier
    evaluation is scored again against them (no new work: they are cached), and the next
-   round searches from there.
+   round searches from there; a round that brings the traced values no nearer is the last.
 
 When no round finds a design, the nearest one (by the traced values) is reported with what
 binds it: a bound of ``[solve]`` (relaxing it helps, as a probe beyond it shows), the
@@ -51,6 +52,8 @@ SCALES = {
 }
 """One unit of miss per target (GU, degrees; for anisotropy and roughness, of their logarithm)."""
 LOG_TARGETS = ("anisotropy", "roughness")
+PATIENCE = 4
+"""Batches without a 1 % better candidate after which a round stops (once it has had twice that many)."""
 MARGIN = 0.25
 """The share of a target's half-width (at most its scale) the surrogate is asked to stay inside it by."""
 PARAMETERS = {
@@ -264,6 +267,7 @@ def solve_design(
     shifts = dict.fromkeys(targets, 0.0)
     evaluations = traced_count = 0
     rounds = 0
+    nearest_before = math.inf
 
     def evaluate(designs: list[Design], level: str) -> list[dict[str, Any]]:
         from printapp.design import resolved_toml
@@ -286,6 +290,7 @@ def solve_design(
         if not history:
             study.enqueue_trial(space.start())
         done = 0
+        best_seen, stale = math.inf, 0
         while done < solve.evaluations:
             trials = [study.ask(space.distributions) for _ in range(min(BATCH, solve.evaluations - done))]
             batch = [Candidate(t.params, space.candidate(t.params), {}) for t in trials]
@@ -300,6 +305,14 @@ def solve_design(
             say(f"round {rounds}: {done} candidates on the surrogate, {good} meet the targets")
             if good >= solve.confirm:
                 break
+            # Patience: a search whose best has not moved for PATIENCE batches has converged.
+            lowest = min(loss(c.result["metrics"], goals) for c in batch)
+            if lowest < best_seen * 0.99 - 1e-9:
+                best_seen, stale = lowest, 0
+            else:
+                stale += 1
+                if stale >= PATIENCE and done >= 2 * BATCH * PATIENCE:
+                    break
         ranked = sorted(
             (c for c in history if c.traced is None), key=lambda c: loss(c.result["metrics"], goals)
         )[: solve.confirm]
@@ -313,6 +326,10 @@ def solve_design(
             best = min(passing, key=lambda c: _centredness(c.traced["metrics"], targets))
             return _outcome(True, best, targets, space, evaluations, traced_count, engine, rounds, start)
         best = min(confirmed, key=lambda c: _traced_loss(c, targets))
+        nearest = _traced_loss(best, targets)
+        if nearest > 0.99 * nearest_before - 1e-9:
+            break  # a round that brought the truth no nearer: another will not either
+        nearest_before = nearest
         for n in targets:
             shifts[n] = value_of(n, best.traced["metrics"], True) - value_of(n, best.result["metrics"], False)
     best = min(confirmed, key=lambda c: _traced_loss(c, targets))

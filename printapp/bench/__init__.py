@@ -50,6 +50,8 @@ STAGES: dict[str, Callable[[int], StageResult]] = {
     "pipeline": _lazy("pipeline"),
     "fit": _lazy("fit"),  # photos to noise parameters, beside the random-phase texture
     "render": _lazy("render"),  # model, table and geometry against distance
+    "solve": _lazy("solve"),  # time and evaluations to meet each example's targets
+    "sweep": _lazy("sweep"),  # speed-up against workers, Dask's overhead per point
 }
 
 

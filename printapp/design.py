@@ -14,49 +14,20 @@ from typing import Annotated, Any, Literal
 
 import annotated_types as at
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import Field, ValidationError, field_validator, model_validator
 
+from printapp.design_solve import TARGET_LIMITS, Solve, target_range
 from printapp.errors import DesignError
+from printapp.schema_base import UNIT_ALIASES, Section
 from printapp.schema_errors import SchemaExplainer
 from printapp.texture_kinds import TEXTURE_KIND_NAMES
 from slicing import PrinterProfile, find_printer
 
-# Unit suffixes a file may use, mapped to the internal field's suffix and the factor
-# that converts to it.
-_UNIT_ALIASES: dict[str, tuple[str, float]] = {
-    "_um": ("_mm", 1e-3),
-    "_cm": ("_mm", 10.0),
-    "_deg": ("_rad", math.pi / 180.0),
-}
 _MAX_GRID_SIDE = 100_000
 """Samples along a tile's side beyond which a design is refused outright (the memory budget refuses far
 fewer on most machines; see :mod:`printapp.memory`)."""
-
-
-class _Section(BaseModel):
-    """Base for every table of the design file: strict types, no unknown keys, finite floats."""
-
-    model_config = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False, frozen=True)
-
-    @model_validator(mode="before")
-    @classmethod
-    def _convert_units(cls, data: Any) -> Any:
-        if not isinstance(data, dict):
-            return data
-        out: dict[str, Any] = {}
-        for key, value in data.items():
-            target = key
-            for suffix, (internal, factor) in _UNIT_ALIASES.items():
-                stem = key[: -len(suffix)] if isinstance(key, str) and key.endswith(suffix) else None
-                if stem is not None and stem + internal in cls.model_fields:
-                    target = stem + internal
-                    if target in data:
-                        raise ValueError(f"give either '{key}' or '{target}', not both")
-                    if isinstance(value, (int, float)) and not isinstance(value, bool):
-                        value = float(value) * factor
-                    break
-            out[target] = value
-        return out
+_UNIT_ALIASES = UNIT_ALIASES
+_Section = Section
 
 
 PositiveMM = Annotated[float, at.Gt(0.0)]
@@ -207,6 +178,12 @@ class Relief(_Section):
     """Peak-to-valley height of the relief (mm): the texture is scaled to span exactly this."""
     pitch_mm: Annotated[float, at.Gt(0.0), at.Le(10.0)] | None = None
     """Sampling pitch of the height field (mm); default: the printer's pixel pitch."""
+    grey_levels: bool = False
+    """Tiles: expose every pixel with the grey level that, by the material's cure model, cures the relief's
+    height there (sub-layer relief, carried by ``slices.sl1``); false: PrusaSlicer's anti-aliased coverage."""
+    pixel_texture_mm: Annotated[float, at.Ge(0.0), at.Le(1.0)] = 0.0
+    """Tiles: depth of a texture at the printer's pixel scale cut into the layer tops (each pixel's top
+    lowered by a hashed share of it, through its exposure), so that no layer top is a flat mirror."""
 
 
 class Printer(_Section):
@@ -257,6 +234,24 @@ class Material(_Section):
     name: str | None = Field(default=None, min_length=1, max_length=200)
     parameters: dict[str, float] = Field(default_factory=dict)
     translucency: Literal["auto", "medium", "albedo"] = "auto"
+    cure: Literal["working-curve", "linear"] = "working-curve"
+    """How thick a grey pixel cures (:mod:`slicing.printed`): Jacobs' working curve with the resin's
+    constants, or a share of the layer linear in the grey level (printapp's first model)."""
+    penetration_depth_mm: Annotated[float, at.Gt(0.0), at.Le(10.0)] | None = None
+    """Working curve: ``Dp`` (default: the catalogue's ``[cure.NAME]`` of this material, else acrylate's)."""
+    critical_dose_mj_cm2: Annotated[float, at.Gt(0.0), at.Le(1e5)] | None = None
+    """Working curve: ``Ec``, the dose at which the resin gels (mJ/cm^2; default: the catalogue's)."""
+    dose_mj_cm2: Annotated[float, at.Gt(0.0), at.Le(1e5)] | None = None
+    """Working curve: the dose a fully lit pixel receives (mJ/cm^2; default: the catalogue's)."""
+
+    @model_validator(mode="after")
+    def _cure_constants(self) -> Material:
+        from printapp.cure import build_cure_model
+
+        build_cure_model(
+            self.cure, self.name, self.penetration_depth_mm, self.critical_dose_mj_cm2, self.dose_mj_cm2
+        )
+        return self
 
     @model_validator(mode="after")
     def _named_material(self) -> Material:
@@ -288,6 +283,10 @@ def _check_range(name: str, pair: tuple[float, float] | None) -> None:
 class Appearance(_Section):
     """Optional targets the design must meet, each as ``[min, max]``.
 
+    A target may also be written ``{ value = 30, tolerance = 5 }`` (the range 25..35, clipped
+    to the measure's range), ``{ max = 10 }`` or ``{ min = 4 }`` (one-sided); it is kept as
+    ``[min, max]``.
+
     ``roughness`` is the Beckmann roughness of the relief's slopes (the root mean
     square slope times sqrt 2, geometric mean of the two principal directions);
     ``anisotropy`` is the ratio of the larger to the smaller principal roughness.
@@ -308,6 +307,13 @@ class Appearance(_Section):
     """Haze index G60 - G20 (ASTM D4039)."""
     highlight_azimuth_deg: tuple[Degrees180, Degrees180] | None = Field(default=None, strict=False)
     """Direction of the highlight's long axis in [0, 180) degrees from +x, from the traced BRDF."""
+
+    @model_validator(mode="before")
+    @classmethod
+    def _target_forms(cls, data: Any) -> Any:
+        if not isinstance(data, dict):
+            return data
+        return {k: target_range(k, v) if k in TARGET_LIMITS else v for k, v in data.items()}
 
     @model_validator(mode="after")
     def _ordered(self) -> Appearance:
@@ -414,6 +420,8 @@ class Design(_Section):
     brdf: Brdf = Brdf()
     render: Render = Render()
     combine: list[Combine] = Field(default_factory=list, strict=False)
+    solve: Solve | None = None
+    """``printapp solve``'s free parameters and bounds (ignored by ``printapp design``)."""
 
     @model_validator(mode="before")
     @classmethod
@@ -455,6 +463,14 @@ class Design(_Section):
             raise ValueError(
                 f"texture: give either field ({texture.field!r}) or angle_deg "
                 f"({math.degrees(texture.angle_rad):g}) for the stretch on a mesh, not both"
+            )
+        return self
+
+    @model_validator(mode="after")
+    def _solve_needs_a_tile(self) -> Design:
+        if self.solve is not None and not isinstance(self.base, TileBase):
+            raise ValueError(
+                "a [solve] table needs a tile base: solve predicts the as-printed relief of tiles"
             )
         return self
 

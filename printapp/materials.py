@@ -285,7 +285,7 @@ def _parse_material(
 
 def parse_library(raw: dict[str, Any], label: str, base: Library | None = None) -> Library:
     """Indices, absorbers and materials of a parsed TOML document (over ``base``, if given)."""
-    _only(label, raw, {"indices", "absorbers", "materials", "material"})
+    _only(label, raw, {"indices", "absorbers", "materials", "material", "cure"})
     raw_indices = dict(base_raw_indices(base))
     raw_indices.update(_table(f"{label}: indices", raw.get("indices", {})))
     indices = {}

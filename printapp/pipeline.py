@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from printapp.brdf import brdf_arrays, npz_bytes
+from printapp.cure import describe_constants
 from printapp.design import Design, TileBase
 from printapp.design_io import resolved_toml
 from printapp.exporters import png_bytes, stl_bytes, threemf_bytes
@@ -30,7 +31,7 @@ from printapp.mesh import (
 )
 from printapp.outputs import OutputFolder
 from printapp.progress import StageTimer
-from printapp.relief import as_printed, build_relief, fits_printer, slice_tile
+from printapp.relief import as_printed, build_relief, cure_model, fits_printer, slice_tile
 from render.microfacet import SlopeRoughness, slope_roughness
 from render.mitsuba_adapter import StudioLight
 from slicing import slice_mesh, write_sl1
@@ -235,7 +236,7 @@ def run_design(
                     )
             if isinstance(design.base, TileBase) and not design.combine:
                 with timer.stage("as_printed", "as-printed relief"):
-                    printed = as_printed(relief.patch, slices, design.base.thickness_mm)
+                    printed = as_printed(relief.patch, slices, design.base.thickness_mm, cure_model(design))
         with timer.stage("appearance", "predicted appearance (slopes)"):
             # From what the printer will make where that is known, else from the design.
             sx, sy = (printed.field if printed is not None else relief.patch).slopes()
@@ -331,7 +332,14 @@ def run_design(
             "as_printed": None
             if printed is None
             else {
-                "model": "linear sub-voxel growth: a pixel of grey g cures g/255 of its layer",
+                "model": cure_model(design).describe(),
+                "cure": describe_constants(cure_model(design)),
+                "exposure": "grey levels from the relief's heights"
+                if design.relief.grey_levels
+                else "binary pixels from the relief's heights"
+                if design.relief.pixel_texture_mm > 0
+                else "anti-aliased area coverage (PrusaSlicer)",
+                "pixel_texture_um": round(design.relief.pixel_texture_mm * 1000.0, 6),
                 "rms_height_error_um": round(printed.rms_error_mm * 1000, 3),
                 "max_height_error_um": round(printed.max_error_mm * 1000, 3),
                 "grid": list(printed.field.shape),

@@ -30,7 +30,8 @@ from printapp.texture import (
     relief_heightfield,
 )
 from slicing import Slices, slice_heightfield
-from slicing.printed import pixel_centres_mm, printed_heights
+from slicing.exposure import expose_heightfield
+from slicing.printed import CureModel, pixel_centres_mm, printed_heights
 
 _PATCH_FEATURES = 12.0  # side of the flat patch used for appearance statistics, in base-octave features
 
@@ -136,15 +137,26 @@ class AsPrinted:
     max_error_mm: float
 
 
-def as_printed(design_field: HeightField, slices: Slices, base_thickness_mm: float) -> AsPrinted:
+def cure_model(design: Design) -> CureModel:
+    """The design's cure model (``[material] cure`` with the catalogue's constants, overridden)."""
+    from printapp.cure import build_cure_model
+
+    m = design.material
+    return build_cure_model(m.cure, m.name, m.penetration_depth_mm, m.critical_dose_mj_cm2, m.dose_mj_cm2)
+
+
+def as_printed(
+    design_field: HeightField, slices: Slices, base_thickness_mm: float, cure: CureModel | None = None
+) -> AsPrinted:
     """What the printer makes of a tile: printed heights at pixel centres, against the design.
 
-    The comparison uses pixels at least one pixel inside the tile's edges (the walls'
-    grey pixels are not relief), the design interpolated bilinearly at the pixel centres.
+    ``cure`` is the cure model (:mod:`slicing.printed`; default: the linear one). The
+    comparison uses pixels at least one pixel inside the tile's edges (the walls' grey
+    pixels are not relief), the design interpolated bilinearly at the pixel centres.
     """
     from scipy.interpolate import RegularGridInterpolator
 
-    heights = printed_heights(slices)
+    heights = printed_heights(slices, cure)
     x, y = pixel_centres_mm(slices)
     xd = x - slices.shift_mm[0] - design_field.origin_x_mm
     yd = y - slices.shift_mm[1] - design_field.origin_y_mm
@@ -184,13 +196,29 @@ def appearance_field(design: Design, relief: Relief | None = None) -> tuple[Heig
     relief = relief or build_relief(design)
     if isinstance(design.base, TileBase) and not design.combine:
         slices = slice_tile(design, relief.patch)
-        return as_printed(relief.patch, slices, design.base.thickness_mm).field, "as-printed relief"
+        printed = as_printed(relief.patch, slices, design.base.thickness_mm, cure_model(design))
+        return printed.field, "as-printed relief"
     return relief.patch, "designed relief"
 
 
 def slice_tile(design: Design, patch: HeightField) -> Slices:
-    """A tile's layers straight from its height field: the same layers as slicing the slab, no mesh."""
+    """A tile's layers straight from its height field: the same layers as slicing the slab, no mesh.
+
+    With ``[relief] grey_levels`` or a ``pixel_texture``, the pixels inside the tile are lit
+    from the relief's heights instead (:func:`slicing.exposure.expose_heightfield`).
+    """
     assert isinstance(design.base, TileBase)
+    if design.relief.grey_levels or design.relief.pixel_texture_mm > 0.0:
+        return expose_heightfield(
+            patch,
+            design.base.thickness_mm,
+            design.printer.profile,
+            cure=cure_model(design),
+            grey_levels=design.relief.grey_levels,
+            pixel_texture_mm=design.relief.pixel_texture_mm,
+            seed=design.texture.seed,
+            layer_height_mm=design.layer_height_mm,
+        )
     return slice_heightfield(
         patch,
         design.base.thickness_mm,

@@ -143,6 +143,7 @@ def test_every_stage_has_a_module_named_after_it():
     assert names == [
         *("noise", "frames", "lic", "slice", "mesh", "brdf"),
         *("pitch", "adaptive", "mie", "pipeline", "fit", "render", "commands"),
+        *("solve", "sweep"),
     ]
     for name in names:
         module = ast.parse((BENCH / f"{name}.py").read_text())

@@ -143,7 +143,7 @@ def test_output_folder_under_a_file_is_not_writable(tmp_path):
 def test_output_folder_that_is_a_file(tmp_path):
     target = tmp_path / "taken"
     target.write_text("x")
-    result = printapp("design", ROOT / "examples" / "fine_matte.toml", "-o", target, "--quiet")
+    result = printapp("design", ROOT / "examples" / "fine_glossy.toml", "-o", target, "--quiet")
     assert result.returncode == 2
     assert "output folder is a file" in result.stderr
     assert target.read_text() == "x"
@@ -286,6 +286,10 @@ def test_every_example_builds_and_passes_verification(tmp_path, example):
     from printapp.pipeline import run_design
 
     design = load_design(ROOT / "examples" / example)
+    if design.solve is not None:
+        # A design for `printapp solve`: its start misses its targets by design; the design that
+        # `printapp solve` found for it (examples/solved/) is the one that prints.
+        design = load_design(ROOT / "examples" / "solved" / f"{Path(example).stem}.solved.toml")
     outcome = run_design(design, tmp_path, quiet=True, render=False)
     assert outcome.passed, outcome.reasons
     assert outcome.manifest["watertight"] and outcome.manifest["manifold"]

@@ -14,6 +14,7 @@ from printapp.cli import mesh_cmds  # noqa: F401 (heightmap, emboss, displace, p
 from printapp.cli import slice_cmds  # noqa: F401 (printers, slice)
 from printapp.cli import appearance_cmds  # noqa: F401 (brdf, render)
 from printapp.cli import material_cmds  # noqa: F401 (material)
+from printapp.cli import solve_cmds  # noqa: F401 (solve, sweep)
 from printapp.cli import bench_cmds  # noqa: F401 (bench)
 
 __all__ = ["app", "main"]

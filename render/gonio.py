@@ -326,6 +326,31 @@ def body_factor(body_albedo: float, ior: float) -> float:
     return body_albedo / (ior * ior * (1.0 - body_albedo * f_int))
 
 
+def lit_window(
+    heights_mm: np.ndarray, pitch_x_mm: float, pitch_y_mm: float, wi: np.ndarray, periodic: bool
+) -> np.ndarray:
+    """First cell and extent (cells) of the window :func:`estimate_brdf` lights, per direction: ``(n_in, 4)``.
+
+    Columns: first cell along x, cells along x, first cell along y, cells along y. The
+    whole tile where it is periodic; else the patch's interior, kept as far from the seams
+    as light at that incidence travels down through the relief's height range, and at
+    least an eighth and at most a quarter of the patch from each side.
+    """
+    h = np.asarray(heights_mm, dtype=np.float64)
+    wis = np.atleast_2d(np.asarray(wi, dtype=np.float64))
+    ny, nx = h.shape
+    window = np.zeros((wis.shape[0], 4))
+    window[:, 1], window[:, 3] = nx, ny
+    if not periodic:
+        travel = float(h.max() - h.min()) * np.hypot(wis[:, 0], wis[:, 1]) / wis[:, 2]
+        # At least an eighth of the patch too, for reflected light that travels sideways.
+        margin_x = np.minimum(np.maximum(np.ceil(travel / pitch_x_mm) + 2.0, nx // 8), nx // 4)
+        margin_y = np.minimum(np.maximum(np.ceil(travel / pitch_y_mm) + 2.0, ny // 8), ny // 4)
+        window[:, 0], window[:, 1] = margin_x, nx - 2 * margin_x
+        window[:, 2], window[:, 3] = margin_y, ny - 2 * margin_y
+    return window
+
+
 def estimate_brdf(
     heights_mm: np.ndarray,
     pitch_x_mm: float,
@@ -412,15 +437,7 @@ def estimate_brdf(
     mip, mip_off, mip_nx, n_levels = max_mipmap(h)
     zmax, zmin = float(h.max()), float(h.min())
     ny, nx = h.shape
-    window = np.zeros((n_in, 4))  # first cell and extent (cells) of the lit window, x then y
-    window[:, 1], window[:, 3] = nx, ny
-    if not periodic:
-        travel = (zmax - zmin) * np.hypot(wis[:, 0], wis[:, 1]) / wis[:, 2]
-        # At least an eighth of the patch too, for reflected light that travels sideways.
-        margin_x = np.minimum(np.maximum(np.ceil(travel / pitch_x_mm) + 2.0, nx // 8), nx // 4)
-        margin_y = np.minimum(np.maximum(np.ceil(travel / pitch_y_mm) + 2.0, ny // 8), ny // 4)
-        window[:, 0], window[:, 1] = margin_x, nx - 2 * margin_x
-        window[:, 2], window[:, 3] = margin_y, ny - 2 * margin_y
+    window = lit_window(h, pitch_x_mm, pitch_y_mm, wis, periodic)
     n_jobs = n_in * _CHUNKS
     n_bins = n_theta * n_phi
     acc_all = np.zeros((n_jobs, n_bins))

@@ -18,26 +18,15 @@ from numba import njit, prange
 
 from noise.hashing import mix64, seed_key
 from render.gonio import first_hit, max_mipmap, primary_origin
+from render.gonio import lit_window as gonio_lit_window
 
 
 def lit_window(heights: np.ndarray, px: float, py: float, wis: np.ndarray, periodic: bool) -> np.ndarray:
     """First cell and extent (cells) of the estimator's lit window per direction, x then y.
 
-    The same rule as ``render.gonio.estimate_brdf`` (margins for a patch that does not tile).
+    :func:`render.gonio.lit_window`, the estimator's own rule.
     """
-    h = heights - heights.mean()
-    zmax, zmin = float(h.max()), float(h.min())
-    ny, nx = h.shape
-    n_in = wis.shape[0]
-    window = np.zeros((n_in, 4))
-    window[:, 1], window[:, 3] = nx, ny
-    if not periodic:
-        travel = (zmax - zmin) * np.hypot(wis[:, 0], wis[:, 1]) / wis[:, 2]
-        margin_x = np.minimum(np.maximum(np.ceil(travel / px) + 2.0, nx // 8), nx // 4)
-        margin_y = np.minimum(np.maximum(np.ceil(travel / py) + 2.0, ny // 8), ny // 4)
-        window[:, 0], window[:, 1] = margin_x, nx - 2 * margin_x
-        window[:, 2], window[:, 3] = margin_y, ny - 2 * margin_y
-    return window
+    return gonio_lit_window(heights - heights.mean(), px, py, wis, periodic)
 
 
 @njit(cache=True, parallel=True)

@@ -20,11 +20,17 @@ from render.fresnel import _fresnel
 @njit(cache=True, inline="always")
 def _grid_value(table, theta_max, x, y, z):
     """Bilinear lookup of a (n_t, n_p) direction table at the unit direction (x, y, z)."""
-    n_t, n_p = table.shape
     theta = math.acos(min(max(z, -1.0), 1.0))
     phi = math.atan2(y, x)
     if phi < 0.0:
         phi += 2.0 * math.pi
+    return _grid_at(table, theta_max, theta, phi)
+
+
+@njit(cache=True, inline="always")
+def _grid_at(table, theta_max, theta, phi):
+    """Bilinear lookup of a (n_t, n_p) direction table at polar angle theta and azimuth phi in [0, 2 pi)."""
+    n_t, n_p = table.shape
     ft = min(theta / theta_max * (n_t - 1), n_t - 1.0)
     i0 = min(int(ft), n_t - 2)
     at = ft - i0
@@ -115,10 +121,14 @@ def _energies(m, w, wis, area, bounce, factor, theta_max, bounce_theta_max, eta,
                 oz = 2.0 * c * m[k, 2] - iz
                 escape = 0.0
                 if oz > 0.0:
-                    a_o = _grid_value(area, theta_max, ox, oy, oz)
+                    theta = math.acos(min(oz, 1.0))
+                    phi = math.atan2(oy, ox)
+                    if phi < 0.0:
+                        phi += 2.0 * math.pi
+                    a_o = _grid_at(area, theta_max, theta, phi)
                     escape = _g2_over_g1(iz, a_i, oz, a_o)
                     e_ss += vis * fr * escape
-                    e_f += vis * fr * escape * _grid_value(factor, theta_max, ox, oy, oz)
+                    e_f += vis * fr * escape * _grid_at(factor, theta_max, theta, phi)
                 if escape < 1.0:
                     e_2 += vis * fr * (1.0 - escape) * _grid_value(bounce, bounce_theta_max, ox, oy, oz)
         out[j, 0] = e_ss
@@ -188,16 +198,16 @@ def _facet_bins(density, extent, sub, wis, area, factor, theta_max, eta, n_theta
                         oz = 2.0 * cm * mz - iz
                         if oz <= 0.0:
                             continue
-                        a_o = _grid_value(area, theta_max, ox, oy, oz)
-                        k_o = _grid_value(factor, theta_max, ox, oy, oz)
-                        fr = 1.0 if eta <= 0.0 else _fresnel(min(cm, 1.0), eta)
-                        # G2 / cos_i, finite at grazing.
-                        g2_ci = oz / (iz * oz + a_i * oz + a_o * iz)
-                        value = dens * h * h * fr * g2_ci * cm / mz * k_i * k_o
                         theta = math.acos(min(oz, 1.0))
                         phi = math.atan2(oy, ox)
                         if phi < 0.0:
                             phi += 2.0 * math.pi
+                        a_o = _grid_at(area, theta_max, theta, phi)
+                        k_o = _grid_at(factor, theta_max, theta, phi)
+                        fr = 1.0 if eta <= 0.0 else _fresnel(min(cm, 1.0), eta)
+                        # G2 / cos_i, finite at grazing.
+                        g2_ci = oz / (iz * oz + a_i * oz + a_o * iz)
+                        value = dens * h * h * fr * g2_ci * cm / mz * k_i * k_o
                         it = min(int(theta / theta_max * n_theta), n_theta - 1)
                         ip = min(int(phi / (2.0 * math.pi) * n_phi), n_phi - 1)
                         out[j, it * n_phi + ip] += value

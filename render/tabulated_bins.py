@@ -30,11 +30,12 @@ def model_bins(
     """Bin averages ``(n_in, n_theta, n_phi)`` of either compact model, as the traced table holds them.
 
     An analytic model goes to :func:`render.brdf_model.model_bins`. For the tabulated
-    one the surface term is integrated over the table's facets (4 x 4 points per cell of
-    the table, each reflected into its bin), except in the rings round the pole, whose
+    one the surface term is integrated over the table's facets (2 x 2 to 4 x 4 points per
+    cell of the table, each reflected into its bin, so that reflected directions lie an
+    eighth of a bin apart), except in the rings round the pole, whose
     wedges are too thin for that: there it is averaged over ``sub x sub`` directions per
     bin (equal steps in ``sin^2 theta`` and ``phi``, default 8). The spike's power goes to
-    the bin of the mirror direction; the body (smooth) is averaged over 4 x 4 directions.
+    the bin of the mirror direction; the body (smooth) is averaged over 2 x 2 directions.
     """
     from render.gonio import projected_solid_angle
 
@@ -52,10 +53,12 @@ def model_bins(
         phi_edges, np.linspace(0.0, 2.0 * math.pi, n_p + 1)
     )
     ndf = model.ndf
-    # Facets by quadrature (4 x 4 points per cell of the table: each lands in one bin), except
+    # Facets by quadrature (points in each cell of the table: each lands in one bin), except
     # in the rings round the pole whose thin wedges are narrower than a few points' spacing:
     # those average sub-sampled directions (as everywhere where the bins are not uniform).
-    spacing = 2.0 * ndf.step / 4.0
+    width = float(np.min(np.diff(theta_edges)))
+    points = int(min(max(math.ceil(16.0 * ndf.step / width), 2), 4))  # per cell side: wo every width / 8
+    spacing = 2.0 * ndf.step / points
     arc = np.sin(np.asarray(theta_edges)[1:]) * np.diff(phi_edges).min()
     direct_rings = n_t if not uniform else int(np.sum(arc < 8.0 * spacing))
     if sub is None:
@@ -64,7 +67,7 @@ def model_bins(
     if direct_rings < n_t and ndf.spike_weight < 1.0:
         sums = np.zeros((wis.shape[0], n_t * n_p))
         _facet_bins(
-            ndf.density, ndf.extent, 4, wis, ndf.area, model.ms_factor, math.pi / 2,
+            ndf.density, ndf.extent, points, wis, ndf.area, model.ms_factor, math.pi / 2,
             -1.0 if model.ior is None else float(model.ior), n_t, n_p, sums,
         )  # fmt: skip
         out += (1.0 - ndf.spike_weight) * sums.reshape(out.shape) / omega
@@ -72,7 +75,7 @@ def model_bins(
     spike = spike_energy(model, wis) if model.spike_weight > 0.0 else np.zeros(len(wis))
     rings = slice(0, direct_rings)
     dirs = bin_directions(theta_edges[: direct_rings + 1], phi_edges, sub) if direct_rings else None
-    body_dirs = bin_directions(theta_edges, phi_edges, 4) if body else None
+    body_dirs = bin_directions(theta_edges, phi_edges, 2) if body else None  # smooth: 2 x 2 a bin
     for k, w in enumerate(wis):
         if dirs is not None:
             out[k, rings] = _surface(model, w[None, None, None, :], dirs, spike=False).mean(axis=-1)

@@ -345,7 +345,7 @@ class TabulatedMicrofacet:
             "model_lambda_area": self.ndf.area,
             "model_ms_factor": self.ms_factor,
             "model_surface_albedo": self.surface_albedo,
-            "model_body_kernel": self.body_kernel,
+            "model_body_kernel": self.body_kernel.astype(np.float32),  # halves brdf.npz; smooth
             "model_body_albedo": np.float64(self.body_albedo),
             "model_ior": np.float64(math.nan if self.ior is None else self.ior),
         }

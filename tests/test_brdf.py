@@ -13,7 +13,7 @@ import pytest
 from scipy.ndimage import gaussian_filter
 
 from noise.heightfield import HeightField
-from render.appearance import gloss_units, predict_appearance
+from render.appearance import gloss_units, haze_index, predict_appearance
 from render.brdf_fit import fit_microfacet, relative_error
 from render.brdf_model import MicrofacetBRDF, bin_average
 from render.fresnel import diffuse_fresnel_reflectance, fresnel_dielectric
@@ -265,6 +265,19 @@ def test_polished_resin_reads_the_glossmeter_values_of_its_index():
         )  # rounded to 3 places
     assert gloss_units(fresnel_dielectric(math.cos(math.radians(60)), 1.567), 60.0) == pytest.approx(100.0)
     assert ap.metrics["haze"] == pytest.approx(ap.metrics["gloss_gu"]["60"] - ap.metrics["gloss_gu"]["20"])
+    assert "ASTM D4039" in ap.metrics["haze_reason"]
+
+
+def test_haze_is_reported_only_where_astm_d4039_defines_it():
+    # High gloss (G60 above 70 GU, ASTM D4039-09 section 4.2): G60 - G20.
+    value, reason = haze_index({"20": 80.0, "60": 88.0})
+    assert value == pytest.approx(8.0) and "ASTM D4039" in reason
+    # Matte: G60 at or below 70 GU, whatever G20 reads (the marble example read G20 25.7 and
+    # G60 11.1, a "haze" of -14.6).
+    value, reason = haze_index({"20": 25.653, "60": 11.064})
+    assert value is None and reason.startswith("n/a") and "70 GU" in reason
+    value, reason = haze_index({"20": 95.0, "60": 90.0})
+    assert value is None and "20-degree" in reason
 
 
 def test_fit_recovers_the_roughness_and_body_of_a_gaussian_surface():

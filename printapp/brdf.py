@@ -48,12 +48,28 @@ def npz_bytes(arrays: dict[str, np.ndarray]) -> bytes:
 
 
 def brdf_arrays(appearance) -> dict[str, np.ndarray]:
-    """The arrays of ``brdf.npz``: the table (see :class:`render.gonio.BrdfTable`) and the fitted model."""
+    """The arrays of ``brdf.npz``: the table (see :class:`render.gonio.BrdfTable`) and the models.
+
+    ``model_*`` are the compact model's tables (:class:`render.tabulated_ndf.TabulatedMicrofacet`:
+    the NDF over its nodes, the masking, multiple-scattering, albedo and body tables),
+    ``model_relative_error`` and ``model_table_noise`` its error against the table and the
+    table's own noise, ``model_used`` 1 where it stands in for the table (0: the table is
+    used); ``fit_*`` the analytic fit beside it (distribution; alpha_u, alpha_v, azimuth,
+    body albedo; its error).
+    """
     arrays = appearance.table.arrays()
-    fit = appearance.fit.model
+    compact = appearance.fit
+    if hasattr(compact.model, "arrays"):
+        arrays.update(compact.model.arrays())
+    arrays["model_relative_error"] = np.float64(compact.relative_error)
+    arrays["model_table_noise"] = np.float64(compact.table_noise)
+    use = appearance.metrics.get("representation", {}).get("use")
+    arrays["model_used"] = np.int8(1 if use == "model" else 0)
+    analytic = appearance.analytic if appearance.analytic is not None else compact
+    fit = analytic.model
     arrays["fit_distribution"] = np.array(fit.distribution)
     arrays["fit_params"] = np.array([fit.alpha_u, fit.alpha_v, fit.azimuth_rad, fit.body_albedo])
-    arrays["fit_relative_error"] = np.float64(appearance.fit.relative_error)
+    arrays["fit_relative_error"] = np.float64(analytic.relative_error)
     return arrays
 
 
@@ -161,7 +177,7 @@ def brdf_plot_png(appearance, title: str) -> bytes:
     import matplotlib.pyplot as plt
     from matplotlib.colors import LogNorm
 
-    from render.brdf_model import sampled_bin_average
+    from render.tabulated_bins import model_bins
 
     table = appearance.table
     n_in = table.wi.shape[0]
@@ -191,7 +207,7 @@ def brdf_plot_png(appearance, title: str) -> bytes:
         ax.tick_params(labelsize=6)
     fig.colorbar(mesh, ax=fig.axes, shrink=0.6, label="f (1/sr)")
     # Cuts through the plane of incidence: the table with its error bars, and the fit.
-    fitted = sampled_bin_average(appearance.fit.model, table.wi, table.theta_o_edges, table.phi_o_edges)
+    fitted = model_bins(appearance.fit.model, table.wi, table.theta_o_edges, table.phi_o_edges)
     ax = fig.add_subplot(rows + 1, 1, rows + 1)
     n_phi = table.f.shape[2]
     for k in range(n_in):
@@ -209,8 +225,8 @@ def brdf_plot_png(appearance, title: str) -> bytes:
     ax.set_ylabel("f (1/sr)")
     fit = appearance.fit
     ax.set_title(
-        f"{title}: dots the traced table, lines the fitted {fit.model.distribution} model "
-        f"(relative error {fit.relative_error:.1%})",
+        f"{title}: dots the traced table, lines the compact {fit.model.distribution} model "
+        f"(relative error {fit.relative_error:.1%}, table noise {fit.table_noise:.1%})",
         fontsize=9,
     )
     buffer = io.BytesIO()

@@ -47,7 +47,8 @@ _METRICS: tuple[tuple[str, tuple[str, ...], int, str, str], ...] = (
         ("brdf", "haze"),
         1,
         "GU",
-        "haze index G60 - G20: light scattered just off the mirror direction",
+        "haze index G60 - G20 (ASTM D4039, high-gloss surfaces only): light scattered just off the "
+        "mirror direction",
     ),
 )
 
@@ -153,6 +154,11 @@ def metric_rows(design: Design, manifest: Mapping[str, Any]) -> list[dict[str, A
         miss = 0.0
         if value is None:
             verdict = "not predicted"
+            reason = _lookup(manifest, (*path[:-1], f"{path[-1]}_reason"))
+            if isinstance(reason, str) and reason.startswith("n/a"):
+                verdict = reason
+                if target is not None:
+                    verdict += "; the target cannot be checked"
         elif target is None:
             verdict = "no target"
         else:
@@ -201,6 +207,54 @@ def _image(png: bytes | None, alt: str, missing: str, pixels: bool = False) -> s
         return f"<p><em>{_e(missing)}</em></p>"
     css = ' class="pixels"' if pixels else ""
     return f'<p><img{css} src="{_data_uri(png)}" alt="{_e(alt)}"></p>'
+
+
+def _brdf_rows(b: Mapping[str, Any]) -> list[tuple[str, Any]]:
+    """The BRDF section's table: the compact model, its error, the analytic fit, what renders."""
+    fit = b.get("fit") or {}
+    analytic = b.get("fit_analytic") or {}
+    use = b.get("representation") or {}
+
+    def pct(value: Any) -> str:
+        return "n/a (too few rays)" if value is None else f"{100.0 * value:.1f} %"
+
+    nan = float("nan")
+    spike = fit.get("spike_weight") or 0.0
+    rows: list[tuple[str, Any]] = [
+        (
+            "compact model",
+            "microfacets with the relief's own distribution of facet normals (tabulated), Smith masking "
+            "from it, second-bounce compensation, the body lit facet by facet"
+            + (f"; {spike:.0%} of the surface flat (a mirror spike)" if spike > 0 else ""),
+        ),
+        (
+            "slope roughness alpha_u, alpha_v",
+            f"{fit.get('alpha_u', nan):.4f}, {fit.get('alpha_v', nan):.4f} along "
+            f"{fit.get('azimuth_deg', nan):.1f}°",
+        ),
+        ("body albedo", f"{fit.get('body_albedo', nan):.3f}"),
+        ("compact model's relative error", pct(fit.get("relative_error"))),
+        ("the table's own noise on those bins", pct(fit.get("table_noise"))),
+    ]
+    if use:
+        rows.append(("rendered with", f"the {use.get('use')}: {use.get('reason')}"))
+    if analytic:
+        rows.append(
+            (
+                "analytic fit, for comparison",
+                f"{analytic.get('distribution')} alpha {analytic.get('alpha_u', nan):.4f} x "
+                f"{analytic.get('alpha_v', nan):.4f}, relative error {pct(analytic.get('relative_error'))}",
+            )
+        )
+    haze = b.get("haze_reason")
+    if haze:
+        rows.append(("haze", haze if b.get("haze") is None else f"{b['haze']:.1f} GU: {haze}"))
+    rows += [
+        ("rays per incident direction", _rays_text(b.get("rays_per_direction"))),
+        ("lobe standard error per direction", _percent_list(b.get("lobe_error"))),
+        ("traced from", b.get("from")),
+    ]
+    return rows
 
 
 def _verdict_section(manifest: Mapping[str, Any]) -> str:
@@ -355,7 +409,9 @@ def report_html(
     add(
         '<p class="explain">The BRDF says how much light arriving from one direction leaves in each other '
         "direction. printapp predicts it by tracing rays through the printed microgeometry (the traced "
-        "table), then fits a compact microfacet model to it, which renders faster. Each disc looks down on "
+        "table), and builds a compact microfacet model from the same relief's facets, which renders faster "
+        "and is checked against the table (where it misses by more than 10 % or three times the table's "
+        "noise, the table is used, and a warning below says so). Each disc looks down on "
         "the hemisphere above the surface: the centre is straight up, the rings are 30 and 60 degrees "
         "from it, the rim is the horizon, and the angles round the rim are azimuths. Bright spots are "
         "highlights (the brightest saturate the colour scale). The third column compares the two: white "
@@ -367,28 +423,11 @@ def report_html(
     else:
         add("<p><em>No BRDF was predicted in this run.</em></p>")
     if fit:
-        rel = fit.get("relative_error")
-        add(
-            _kv_table(
-                [
-                    ("fitted model", f"{fit.get('distribution')} microfacet lobe and a diffuse body"),
-                    (
-                        "roughness alpha_u, alpha_v",
-                        f"{fit.get('alpha_u', float('nan')):.4f}, {fit.get('alpha_v', float('nan')):.4f}",
-                    ),
-                    ("lobe azimuth", f"{fit.get('azimuth_deg', float('nan')):.1f}°"),
-                    ("body albedo", f"{fit.get('body_albedo', float('nan')):.3f}"),
-                    ("fit relative error", "n/a" if rel is None else f"{100.0 * rel:.1f} %"),
-                    (
-                        "the table's own noise on those bins",
-                        "n/a" if fit.get("table_noise") is None else f"{100.0 * fit['table_noise']:.1f} %",
-                    ),
-                    ("rays per incident direction", _rays_text(b.get("rays_per_direction"))),
-                    ("lobe standard error per direction", _percent_list(b.get("lobe_error"))),
-                    ("traced from", b.get("from")),
-                ]
-            )
-        )
+        add(_kv_table(_brdf_rows(b)))
+        warnings = b.get("warnings") or []
+        if warnings:
+            items = "".join(f"<li>{_e(w)}</li>" for w in warnings)
+            add(f'<div class="verdict fail"><strong>Warnings</strong><ul>{items}</ul></div>')
 
     # Appearance metrics vs targets.
     add('<h2 id="targets">Appearance against the targets</h2>')

@@ -1,4 +1,4 @@
-"""The report's BRDF figure: hemispherical maps of the traced table, the fitted model and their ratio."""
+"""The report's BRDF figure: hemispherical maps of the traced table, the compact model and their ratio."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ import numpy as np
 BRDF_DIRECTIONS_DEG = ((0.0, 0.0), (40.0, 0.0), (60.0, 90.0))
 """Incident (theta, phi) in degrees whose BRDF the report maps: the table's nearest directions."""
 RATIO_RANGE = 4.0
-"""The difference map's colour scale spans fitted/traced from 1/RATIO_RANGE to RATIO_RANGE."""
+"""The difference map's colour scale spans model/traced from 1/RATIO_RANGE to RATIO_RANGE."""
 
 
 def _nearest_directions(wi: np.ndarray, wanted_deg: Sequence[tuple[float, float]]) -> list[int]:
@@ -32,12 +32,12 @@ def _nearest_directions(wi: np.ndarray, wanted_deg: Sequence[tuple[float, float]
 def brdf_figure_png(
     appearance: Any, directions_deg: Sequence[tuple[float, float]] = BRDF_DIRECTIONS_DEG
 ) -> bytes:
-    """Hemispherical maps of the traced BRDF table, the fitted model and their ratio, as PNG bytes.
+    """Hemispherical maps of the traced BRDF table, the compact model and their ratio, as PNG bytes.
 
     One row per incident direction (the table's nearest to each of ``directions_deg``);
     each map looks down on the hemisphere of outgoing directions (polar angle 0 to 90
     degrees outwards, azimuth around). The table and the model share one logarithmic
-    colour scale; the third map is fitted / traced on a logarithmic scale from
+    colour scale; the third map is model / traced on a logarithmic scale from
     ``1/RATIO_RANGE`` to ``RATIO_RANGE``, labelled as a relative difference. Bins the
     tracer left empty are grey in the difference map.
 
@@ -50,7 +50,7 @@ def brdf_figure_png(
     from matplotlib.figure import Figure
     from matplotlib.ticker import FixedFormatter, FixedLocator, FuncFormatter, LogLocator, NullFormatter
 
-    from render.brdf_model import model_bins
+    from render.tabulated_bins import model_bins
 
     table = appearance.table
     rows = _nearest_directions(np.asarray(table.wi), directions_deg)
@@ -80,8 +80,8 @@ def brdf_figure_png(
         label = f"light from {theta_i:.0f}° polar, {phi_i:.0f}° azimuth"
         panels = (
             (traced[i], f_norm, "magma", "traced table f"),
-            (fitted[i], f_norm, "magma", "fitted model f"),
-            (ratio[i], r_norm, "RdBu_r", "fitted vs traced"),
+            (fitted[i], f_norm, "magma", "compact model f"),
+            (ratio[i], r_norm, "RdBu_r", "model vs traced"),
         )
         for j, (values, norm, cmap, name) in enumerate(panels):
             ax = fig.add_subplot(len(rows), 3, 3 * i + j + 1, projection="polar")
@@ -111,7 +111,7 @@ def brdf_figure_png(
     f_bar.ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
     f_bar.ax.xaxis.set_minor_formatter(NullFormatter())
     bar = fig.colorbar(
-        r_mesh, ax=maps[2::3], location="bottom", shrink=0.9, label="fitted vs traced, log scale"
+        r_mesh, ax=maps[2::3], location="bottom", shrink=0.9, label="model vs traced, log scale"
     )
     bar.ax.xaxis.set_major_locator(FixedLocator([0.25, 0.5, 1.0, 2.0, 4.0]))
     bar.ax.xaxis.set_major_formatter(FixedFormatter(["-75%", "-50%", "0", "+100%", "+300%"]))

@@ -30,9 +30,11 @@ def _trace(
 ):
     """First hit of a ray with the periodic height field.
 
+    Each cell is four triangles around its centre (the mean of its corners): 0 bottom
+    (v00, v10, c), 1 right (v10, v11, c), 2 top (v11, v01, c), 3 left (v01, v00, c).
     Returns ``(status, t, nx, ny, nz, ci, cj, tri, steps)``: status 0 escaped (above every
-    sample, going up), 1 hit (unwrapped cell ``ci, cj``, triangle ``tri`` 0 lower /
-    1 upper, unit normal), 2 lost (step budget exhausted).
+    sample, going up), 1 hit (unwrapped cell ``ci, cj``, triangle ``tri``, unit normal),
+    2 lost (step budget exhausted).
     """
     ny_, nx_ = h.shape
     if skip_tri >= 0:
@@ -51,6 +53,8 @@ def _trace(
     inv_dy = 1.0 / dy if dy != 0.0 else 0.0
     inv_px = 1.0 / px
     inv_py = 1.0 / py
+    du = dx * inv_px
+    dv = dy * inv_py
     while steps < _MAX_STEPS:
         steps += 1
         z = oz + t * dz
@@ -94,61 +98,74 @@ def _trace(
             level -= 1
             continue
         if not skip:
-            # Level 0: the cell (ci, cj). u, v are cell-local coordinates in [0, 1].
+            # Level 0: the cell (ci, cj). u, v are cell-local coordinates in [0, 1]; every
+            # triangle's plane passes through the centre (1/2, 1/2, hc).
             c1 = wi_ + 1 if wi_ + 1 < nx_ else 0
             r1 = wj_ + 1 if wj_ + 1 < ny_ else 0
             h00 = h[wj_, wi_]
             h10 = h[wj_, c1]
             h01 = h[r1, wi_]
             h11 = h[r1, c1]
-            u0 = (ox - ci * px) * inv_px
-            v0 = (oy - cj * py) * inv_py
-            du = dx * inv_px
-            dv = dy * inv_py
-            ta = t
-            t_diag = _INF
-            if du != dv:
-                t_diag = (v0 - u0) / (du - dv)
-            for seg in range(2):
-                if seg == 0:
-                    a = ta
-                    b = t_diag if ta < t_diag < t_exit else t_exit
+            hc = 0.25 * ((h00 + h11) + (h10 + h01))
+            u0 = (ox - ci * px) * inv_px - 0.5
+            v0 = (oy - cj * py) * inv_py - 0.5
+            # The ray crosses the diagonals u = v and u = -v (centred coordinates) at most once each.
+            t1 = (v0 - u0) / (du - dv) if du != dv else _INF
+            t2 = -(u0 + v0) / (du + dv) if du != -dv else _INF
+            if t2 < t1:
+                t1, t2 = t2, t1
+            # Segment ends: the crossings inside (t, t_exit), in order, then the exit.
+            n_cross = 0
+            c_a = t_exit
+            c_b = t_exit
+            if t < t1 < t_exit:
+                c_a = t1
+                n_cross = 1
+            if t < t2 < t_exit:
+                if n_cross == 0:
+                    c_a = t2
                 else:
-                    if not (ta < t_diag < t_exit):
-                        break
-                    a = t_diag
-                    b = t_exit
+                    c_b = t2
+                n_cross += 1
+            a = t
+            for seg in range(n_cross + 1):
+                b = c_a if seg == 0 else (c_b if seg == 1 else t_exit)
                 tm = 0.5 * (a + b)
-                lower = (u0 + tm * du) >= (v0 + tm * dv)
-                if lower:
+                um = u0 + tm * du
+                vm = v0 + tm * dv
+                # Below u = v: bottom or right; above: top or left (split by u + v = 0).
+                below = um + vm < 0.0
+                tri = (0 if below else 1) if um >= vm else (3 if below else 2)
+                if tri == 0:
                     su = h10 - h00
+                    sv = 2.0 * hc - (h00 + h10)
+                elif tri == 1:
+                    su = (h10 + h11) - 2.0 * hc
                     sv = h11 - h10
-                    tri = 0
-                else:
+                elif tri == 2:
                     su = h11 - h01
+                    sv = (h01 + h11) - 2.0 * hc
+                else:
+                    su = 2.0 * hc - (h00 + h01)
                     sv = h01 - h00
-                    tri = 1
-                gx = su / px
-                gy = sv / py
+                gx = su * inv_px
+                gy = sv * inv_py
                 if tri == skip_tri and ci == skip_ci and cj == skip_cj:
                     # The facet the ray leaves: d(t) = t * slope exactly, never a hit.
                     d_b = b * (dz - gx * dx - gy * dy)
                 else:
-                    ub = u0 + b * du
-                    vb = v0 + b * dv
-                    d_b = (oz + b * dz) - (h00 + ub * su + vb * sv)
+                    d_b = (oz + b * dz) - (hc + (u0 + b * du) * su + (v0 + b * dv) * sv)
                     if d_b < 0.0:
                         if d_valid:
                             d_a = max(d_prev, 0.0)
                         else:
-                            ua = u0 + a * du
-                            va = v0 + a * dv
-                            d_a = max((oz + a * dz) - (h00 + ua * su + va * sv), 0.0)
+                            d_a = max((oz + a * dz) - (hc + (u0 + a * du) * su + (v0 + a * dv) * sv), 0.0)
                         t_hit = a + d_a * (b - a) / (d_a - d_b)
                         inv = 1.0 / math.sqrt(gx * gx + gy * gy + 1.0)
                         return 1, t_hit, -gx * inv, -gy * inv, inv, ci, cj, tri, steps
                 d_prev = d_b
                 d_valid = True
+                a = b
         else:
             d_valid = False
         # Step into the next block (or cell) along the ray.

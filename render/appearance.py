@@ -6,9 +6,20 @@ around the mirror direction, relative to the flux a polished black glass of inde
 apertures (full angles, in the plane of incidence x across it; ISO 2813 Table 1) are
 1.8 x 3.6 degrees at 20, 4.4 x 11.7 at 60 and 4.0 x 6.0 at 85. The source is taken as
 collimated (the standard's source aperture is 0.75 degrees, well inside every
-receptor). Haze is the index of ASTM D4039, ``G60 - G20``: light scattered a few
-degrees around the mirror direction, caught by the wide 60-degree receptor but not
-by the narrow 20-degree one.
+receptor). Haze is the index of ASTM D4039-09, ``G60 - G20`` (its section 3.2.3):
+light scattered a few degrees around the mirror direction, caught by the wide 60-degree
+receptor but not by the narrow 20-degree one. The standard defines it for high-gloss,
+nonmetallic surfaces only, those whose 60-degree gloss is above 70 GU (its section 4.2):
+below that most of the reflected light is outside both receptors and the difference
+says nothing about haze (a matte relief can read G20 above G60, a negative "haze").
+Elsewhere haze is reported as undefined (None), with the reason.
+
+The compact model is the tabulated-NDF microfacet model of the relief's own facets
+(:mod:`render.tabulated_ndf`); the analytic GGX or Beckmann fit (:mod:`render.brdf_fit`)
+is kept beside it, for its familiar parameters and for comparison. Where the compact
+model misses the traced table by more than ``max(10 %, 3 x the table's noise)``
+(:func:`render.representation.tolerance_for`), the table stands in for it, and the
+metrics say so, with a warning.
 """
 
 from __future__ import annotations
@@ -20,17 +31,23 @@ from typing import Any
 import numpy as np
 
 from noise.heightfield import HeightField
-from render.brdf_fit import FitResult, fit_microfacet, lobe_alpha
+from render.brdf_fit import FitResult, fit_microfacet, lobe_alpha, table_noise
 from render.fresnel import fresnel_dielectric
 from render.gonio import (
     BrdfTable,
     direction_from_angles,
     estimate_brdf,
+    lit_window,
     rays_for_lobe_error,
     table_lobe_errors,
 )
+from render.representation import tolerance_for
+from render.tabulated_bins import table_error
+from render.tabulated_ndf import tabulate_ndf, tabulated_model
 
 BLACK_GLASS_INDEX = 1.567
+HAZE_MIN_GLOSS_60 = 70.0
+"""ASTM D4039-09, section 4.2: the haze index is for specimens whose 60-degree gloss exceeds 70 GU."""
 # A small calibration run underestimates the lobe's error (its lobe holds fewer bins, and
 # sparsely hit bins understate their spread), so the budget is refined from each run.
 _BUDGET_ROUNDS = 4
@@ -75,14 +92,40 @@ def peak_direction(table: BrdfTable, k: int) -> tuple[float, float]:
     return math.degrees(t[it, ip]), math.degrees(p[it, ip])
 
 
+def haze_index(gloss_gu: dict[str, float]) -> tuple[float | None, str]:
+    """ASTM D4039's haze index ``G60 - G20`` where the standard defines it, else None; and why.
+
+    Defined for high-gloss surfaces: a 60-degree gloss above :data:`HAZE_MIN_GLOSS_60`
+    (ASTM D4039-09, section 4.2), which also keeps G60 at or above G20 on every relief
+    traced here. A reading of G20 above G60 is refused all the same: it is no haze.
+    """
+    g20, g60 = float(gloss_gu["20"]), float(gloss_gu["60"])
+    if not g60 > HAZE_MIN_GLOSS_60:
+        return None, (
+            f"n/a: the 60-degree gloss {g60:.1f} GU is not above the {HAZE_MIN_GLOSS_60:g} GU from which "
+            "ASTM D4039 defines haze (high-gloss surfaces only)"
+        )
+    if g20 > g60:
+        return None, (
+            f"n/a: the 20-degree gloss {g20:.1f} GU is above the 60-degree {g60:.1f} GU, which the "
+            "haze index G60 - G20 of ASTM D4039 does not describe"
+        )
+    return round(g60 - g20, 3), f"G60 - G20 (ASTM D4039; G60 {g60:.1f} GU > {HAZE_MIN_GLOSS_60:g} GU)"
+
+
 @dataclass
 class Appearance:
-    """Predicted appearance of a relief: the BRDF table, the glossmeter readings, the fitted model."""
+    """Predicted appearance of a relief: the BRDF table, the glossmeter readings, the compact model.
+
+    ``fit`` is the compact model (the tabulated-NDF model, :mod:`render.tabulated_ndf`)
+    and its error against the table; ``analytic`` the GGX or Beckmann fit beside it.
+    """
 
     table: BrdfTable
     gloss_table: BrdfTable
     fit: FitResult
     metrics: dict[str, Any] = field(default_factory=dict)
+    analytic: FitResult | None = None
 
 
 def predict_appearance(
@@ -186,7 +229,8 @@ def predict_appearance(
     gu = gloss_units(gloss_table.aperture, np.array([a for a, _ in gloss_inc]))
     gloss = {str(a): round(float(gu[i]), 3) for i, a in enumerate(angles)}
     gloss_y = {str(a): round(float(gu[len(angles) + i]), 3) for i, a in enumerate(angles)}
-    fit = fit_microfacet(
+    haze, haze_reason = haze_index(gloss)
+    analytic = fit_microfacet(
         wi,
         table.f,
         table.f_specular,
@@ -198,6 +242,21 @@ def predict_appearance(
         stderr=table.stderr,
     )
     normal = int(np.argmin(inc[:, 0]))
+    # The compact model: the facets the tracer saw (on a patch, those of the window it lit
+    # at the most normal incidence), the resin's index and the body's albedo.
+    window = (
+        None
+        if periodic
+        else lit_window(heights_mm, pitch_x_mm, pitch_y_mm, wi[normal : normal + 1], False)[0]
+    )
+    compact = tabulated_model(
+        tabulate_ndf(heights_mm, pitch_x_mm, pitch_y_mm, periodic=periodic, window=window), body_albedo, ior
+    )
+    omega = table.projected_solid_angle
+    noise = table_noise(table.f, omega, table.stderr)
+    error, used = table_error(compact, wi, table.f, table.stderr, table.theta_o_edges, table.phi_o_edges)
+    fit = FitResult(compact, error, used, noise)
+    representation, warnings = model_or_table(fit)
     # The highlight's shape from the surface-reflection lobe at the most normal incidence.
     alpha_long, alpha_short, azimuth = lobe_alpha(
         table.f_specular[normal], table.theta_o_edges, table.phi_o_edges
@@ -208,7 +267,8 @@ def predict_appearance(
         "albedo_stderr": [float(f"{a:.3g}") for a in table.albedo_stderr],
         "gloss_gu": gloss,
         "gloss_gu_plane_yz": gloss_y,
-        "haze": round(gloss["60"] - gloss["20"], 3),
+        "haze": haze,
+        "haze_reason": haze_reason,
         "peak_deg": [[round(v, 2) for v in peak_direction(table, k)] for k in range(len(inc))],
         "highlight": {
             "at_incidence_deg": inc[normal].tolist(),
@@ -218,13 +278,44 @@ def predict_appearance(
             "azimuth_deg": round(math.degrees(azimuth), 3),
         },
         "fit": {
-            **fit.model.as_dict(),
+            **{k: (round(v, 6) if isinstance(v, float) else v) for k, v in fit.model.as_dict().items()},
             "relative_error": _finite(fit.relative_error),
             "table_noise": _finite(fit.table_noise),
             "bins": fit.bins_used,
         },
+        "fit_analytic": {
+            **analytic.model.as_dict(),
+            "relative_error": _finite(analytic.relative_error),
+            "table_noise": _finite(analytic.table_noise),
+            "bins": analytic.bins_used,
+        },
+        "representation": representation,
+        "warnings": warnings,
         "rays_per_direction": [int(r) for r in table.rays],
         "lobe_error": [_finite(float(e)) for e in lobe_errors],
         "lost_fraction": float(np.max(np.concatenate([table.lost, gloss_table.lost]))),
     }
-    return Appearance(table=table, gloss_table=gloss_table, fit=fit, metrics=metrics)
+    return Appearance(table=table, gloss_table=gloss_table, fit=fit, metrics=metrics, analytic=analytic)
+
+
+def model_or_table(fit: FitResult) -> tuple[dict[str, Any], list[str]]:
+    """Whether the compact model may stand in for the traced table, why, and the warnings."""
+    tolerance = tolerance_for(fit.table_noise)
+    error = fit.relative_error
+    noise = "n/a" if not math.isfinite(fit.table_noise) else f"{fit.table_noise:.1%}"
+    rule = f"max(10 %, 3 x the table's noise {noise}) = {tolerance:.1%}"
+    if math.isfinite(error) and error <= tolerance:
+        use = "model"
+        reason = f"the compact model fits the traced table to {error:.1%}, within {rule}"
+        warnings: list[str] = []
+    else:
+        use = "table"
+        missed = (
+            "an error that cannot be measured (too few rays)" if not math.isfinite(error) else f"{error:.1%}"
+        )
+        reason = f"the compact model misses the traced table by {missed}, more than {rule}: the table is used"
+        warnings = [
+            f"the compact BRDF model misses the traced table by {missed} (more than {rule}); "
+            "the traced table stands in for it in BRDF renders"
+        ]
+    return {"use": use, "tolerance": round(tolerance, 6), "reason": reason}, warnings

@@ -9,9 +9,15 @@ measurement equation then gives the bin-averaged BRDF
 
     f_bin = (Phi_bin / Phi_in) / integral_bin cos(theta_o) d omega_o      [1/sr].
 
-The surface is a height field on a regular grid, triangulated with two triangles per
-cell (diagonal from sample (r, c) to (r+1, c+1), as the printable slab is), and
-treated as periodic: the tile repeats in x and y, so no ray is lost at its sides.
+The surface is a height field on a regular grid, each cell cut into four triangles
+that meet at its centre, raised to the mean of its four corners (the bilinear patch's
+centre), and treated as periodic: the tile repeats in x and y, so no ray is lost at
+its sides. The four-triangle cell has the square's symmetries: mirroring or turning a
+relief by a multiple of 90 degrees mirrors or turns its facets, so the traced highlight
+does not depend on how the grid is triangulated. (Two triangles per cell with one fixed
+diagonal, as the printable slab has, favour that diagonal: on a Gaussian relief with
+grooves at 30 degrees four pixels across, the highlight's anisotropy was 6.2 with the
+relief as it is and 5.3 mirrored; with four triangles it is the same both ways.)
 
 At each hit the ray's energy is split, not sampled: the Fresnel fraction ``R``
 (unpolarised, dielectric, index ``n``) continues as the mirror reflection, and the
@@ -35,7 +41,8 @@ Ihrke & Seidel 2008, "Maximum mipmaps for fast, accurate, and scalable dynamic h
 field rendering"). In each cell, the signed height of the ray over the surface is
 linear on each triangle, and its value at a cell's exit is carried into the next cell
 instead of being recomputed, so a ray cannot slip between two triangles through
-rounding: the test is watertight by construction. A ray leaving a facet is never
+rounding: the test is watertight by construction (the same holds across the two
+diagonals inside a cell). A ray leaving a facet is never
 tested against that facet's plane again (a straight ray cannot return to a plane it
 leaves), which is the self-intersection offset, with no epsilon.
 """
@@ -78,6 +85,27 @@ def max_mipmap(heights: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray,
     return flat, offsets, level_nx, len(levels)
 
 
+def facet_slopes(heights: np.ndarray, pitch_x: float, pitch_y: float) -> tuple[np.ndarray, np.ndarray]:
+    """Slopes ``dh/dx`` and ``dh/dy`` of the tracer's facets, four per periodic cell, of equal area.
+
+    Triangle k of every cell (0 bottom, 1 right, 2 top, 3 left, as :func:`first_hit`
+    numbers them) fills rows ``k * ny * nx`` to ``(k + 1) * ny * nx`` of the result, cells
+    row by row. Each facet covers a quarter of its cell, so the plain histogram of these
+    slopes is the relief's slope distribution per unit of macro area.
+    """
+    h = np.asarray(heights, dtype=np.float64)
+    h10 = np.roll(h, -1, axis=1)
+    h01 = np.roll(h, -1, axis=0)
+    h11 = np.roll(h10, -1, axis=0)
+    hc = 0.25 * ((h + h11) + (h10 + h01))
+    gx = [h10 - h, (h10 + h11) - 2.0 * hc, h11 - h01, 2.0 * hc - (h + h01)]
+    gy = [2.0 * hc - (h + h10), h11 - h10, (h01 + h11) - 2.0 * hc, h01 - h]
+    return (
+        np.concatenate([g.ravel() for g in gx]) / pitch_x,
+        np.concatenate([g.ravel() for g in gy]) / pitch_y,
+    )
+
+
 @njit(cache=True)
 def first_hit(h, px, py, mip, mip_off, mip_nx, n_levels, zmax, zmin, ox, oy, oz, dx, dy, dz):
     """First hit of one ray with the periodic height field: the estimator's tracer, alone.
@@ -112,7 +140,8 @@ def first_hit(h, px, py, mip, mip_off, mip_nx, n_levels, zmax, zmin, ox, oy, oz,
     ci, cj : int
         Unwrapped cell (column, row) where the ray ended; outside ``0..nx-1`` after wrapping.
     tri : int
-        Triangle hit: 0 lower (v00, v10, v11), 1 upper (v00, v11, v01); -1 unless a hit.
+        Triangle hit, of the four around the cell's centre c: 0 bottom (v00, v10, c),
+        1 right (v10, v11, c), 2 top (v11, v01, c), 3 left (v01, v00, c); -1 unless a hit.
     steps : int
         Cells and mipmap blocks visited.
     """
@@ -297,6 +326,31 @@ def body_factor(body_albedo: float, ior: float) -> float:
     return body_albedo / (ior * ior * (1.0 - body_albedo * f_int))
 
 
+def lit_window(
+    heights_mm: np.ndarray, pitch_x_mm: float, pitch_y_mm: float, wi: np.ndarray, periodic: bool
+) -> np.ndarray:
+    """First cell and extent (cells) of the window :func:`estimate_brdf` lights, per direction: ``(n_in, 4)``.
+
+    Columns: first cell along x, cells along x, first cell along y, cells along y. The
+    whole tile where it is periodic; else the patch's interior, kept as far from the seams
+    as light at that incidence travels down through the relief's height range, and at
+    least an eighth and at most a quarter of the patch from each side.
+    """
+    h = np.asarray(heights_mm, dtype=np.float64)
+    wis = np.atleast_2d(np.asarray(wi, dtype=np.float64))
+    ny, nx = h.shape
+    window = np.zeros((wis.shape[0], 4))
+    window[:, 1], window[:, 3] = nx, ny
+    if not periodic:
+        travel = float(h.max() - h.min()) * np.hypot(wis[:, 0], wis[:, 1]) / wis[:, 2]
+        # At least an eighth of the patch too, for reflected light that travels sideways.
+        margin_x = np.minimum(np.maximum(np.ceil(travel / pitch_x_mm) + 2.0, nx // 8), nx // 4)
+        margin_y = np.minimum(np.maximum(np.ceil(travel / pitch_y_mm) + 2.0, ny // 8), ny // 4)
+        window[:, 0], window[:, 1] = margin_x, nx - 2 * margin_x
+        window[:, 2], window[:, 3] = margin_y, ny - 2 * margin_y
+    return window
+
+
 def estimate_brdf(
     heights_mm: np.ndarray,
     pitch_x_mm: float,
@@ -383,15 +437,7 @@ def estimate_brdf(
     mip, mip_off, mip_nx, n_levels = max_mipmap(h)
     zmax, zmin = float(h.max()), float(h.min())
     ny, nx = h.shape
-    window = np.zeros((n_in, 4))  # first cell and extent (cells) of the lit window, x then y
-    window[:, 1], window[:, 3] = nx, ny
-    if not periodic:
-        travel = (zmax - zmin) * np.hypot(wis[:, 0], wis[:, 1]) / wis[:, 2]
-        # At least an eighth of the patch too, for reflected light that travels sideways.
-        margin_x = np.minimum(np.maximum(np.ceil(travel / pitch_x_mm) + 2.0, nx // 8), nx // 4)
-        margin_y = np.minimum(np.maximum(np.ceil(travel / pitch_y_mm) + 2.0, ny // 8), ny // 4)
-        window[:, 0], window[:, 1] = margin_x, nx - 2 * margin_x
-        window[:, 2], window[:, 3] = margin_y, ny - 2 * margin_y
+    window = lit_window(h, pitch_x_mm, pitch_y_mm, wis, periodic)
     n_jobs = n_in * _CHUNKS
     n_bins = n_theta * n_phi
     acc_all = np.zeros((n_jobs, n_bins))

@@ -50,19 +50,24 @@ class TableSurface:
     body_tint: tuple[float, float, float] = (1.0, 1.0, 1.0)
 
 
-def surface_bsdf(surface: CompactSurface | TableSurface | dict) -> Any:
+def surface_bsdf(surface: Any) -> Any:
     """A Mitsuba BSDF object for a representation of the printed surface (variant already set).
 
+    ``surface`` is a :class:`CompactSurface`, a :class:`TableSurface` or a
+    :class:`render.mitsuba_tabulated.TabulatedSurface` (the tabulated-NDF compact model).
     A ``dict`` is a Mitsuba plugin description, loaded as it is (for comparisons with
     Mitsuba's own BSDFs).
     """
     import mitsuba as mi
 
     from render.fresnel import diffuse_fresnel_reflectance
+    from render.mitsuba_tabulated import TabulatedSurface, tabulated_plugin_dict
 
     _register_plugins()
     if isinstance(surface, dict):
         return mi.load_dict(surface)
+    if isinstance(surface, TabulatedSurface):
+        return mi.load_dict(tabulated_plugin_dict(surface))
     if isinstance(surface, CompactSurface):
         return mi.load_dict(
             {

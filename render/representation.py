@@ -2,7 +2,8 @@
 
 Three representations of the printed surface, from cheapest to dearest:
 
-* ``"model"``: the fitted compact BRDF (:mod:`render.brdf_model`) on the smooth base shape;
+* ``"model"``: the compact BRDF (the tabulated-NDF model of :mod:`render.tabulated_ndf`, or
+  an analytic one of :mod:`render.brdf_model`) on the smooth base shape;
 * ``"table"``: the traced BRDF table itself, on the base shape;
 * ``"geometry"``: the displaced microgeometry in smooth resin, the reference.
 
@@ -12,8 +13,8 @@ reflectance, which is its BRDF. Where features span pixels, their shading and
 shadows are what is seen, and only geometry shows them. The chooser compares the
 relief's base feature size with the pixel footprint at the object, with a threshold
 measured by ``printapp bench render`` (:data:`GEOMETRY_FROM_FEATURES_PER_PIXEL`), and
-between the two BRDFs takes the compact model unless its fit error is above the
-tolerance.
+between the two BRDFs takes the compact model unless its error against the traced table
+is above ``max(10 %, 3 x the table's noise)`` (:func:`tolerance_for`).
 """
 
 from __future__ import annotations
@@ -27,6 +28,8 @@ from render.brdf_model import MicrofacetBRDF
 from render.fresnel import diffuse_fresnel_reflectance
 from render.gonio import direction_from_angles, estimate_brdf
 from render.mitsuba_bsdfs import CompactSurface, TableSurface
+from render.mitsuba_tabulated import TabulatedSurface
+from render.tabulated_ndf import TabulatedMicrofacet
 
 REPRESENTATIONS = ("model", "table", "geometry")
 
@@ -39,8 +42,21 @@ compact model's image error against the geometry reference (noise taken off) is 
 falls at about 1.5. Below that, the pixels average the relief into its BRDF; above it,
 the camera sees the features themselves."""
 
-MODEL_TOLERANCE = 0.15
-"""Largest relative fit error at which the compact model may stand in for the table."""
+MODEL_TOLERANCE = 0.10
+"""The smallest tolerance of :func:`tolerance_for`: the compact model may stand in for the
+table where it misses it by at most 10 %, or by three times the table's own noise where
+that is more (a difference the noise could make)."""
+
+
+def tolerance_for(table_noise: float) -> float:
+    """Largest relative error at which the compact model may stand in for the traced table.
+
+    ``max(10 %, 3 x table_noise)``: an error below three times the table's own noise cannot
+    be told from it. Without a finite noise, 10 %.
+    """
+    if table_noise is None or not math.isfinite(table_noise):
+        return MODEL_TOLERANCE
+    return max(MODEL_TOLERANCE, 3.0 * float(table_noise))
 
 
 @dataclass(frozen=True)
@@ -57,8 +73,9 @@ def choose_representation(
     pixel_footprint_mm: float,
     fit_error: float,
     *,
+    table_noise: float = math.nan,
     geometry_from: float = GEOMETRY_FROM_FEATURES_PER_PIXEL,
-    model_tolerance: float = MODEL_TOLERANCE,
+    model_tolerance: float | None = None,
 ) -> Choice:
     """The cheapest representation that shows what the camera can see.
 
@@ -70,7 +87,11 @@ def choose_representation(
         Width of a pixel at the object (mm).
     fit_error : float
         Relative error of the compact model against the traced table.
+    table_noise : float
+        The table's own relative noise on the same bins; the tolerance is
+        :func:`tolerance_for` of it (10 % without it), unless ``model_tolerance`` is given.
     """
+    tolerance = tolerance_for(table_noise) if model_tolerance is None else model_tolerance
     if not (feature_size_mm > 0 and pixel_footprint_mm > 0):
         raise ValueError("feature_size_mm and pixel_footprint_mm must be positive")
     pixels = feature_size_mm / pixel_footprint_mm
@@ -80,7 +101,7 @@ def choose_representation(
             f"relief features span {pixels:.2g} pixels (>= {geometry_from:g}): the camera resolves them",
             pixels,
         )
-    if math.isfinite(fit_error) and fit_error <= model_tolerance:
+    if math.isfinite(fit_error) and fit_error <= tolerance:
         return Choice(
             "model",
             f"relief features span {pixels:.2g} pixels (< {geometry_from:g}) and the compact model fits "
@@ -90,7 +111,7 @@ def choose_representation(
     return Choice(
         "table",
         f"relief features span {pixels:.2g} pixels (< {geometry_from:g}) but the compact model misses the "
-        f"traced BRDF by {fit_error:.1%} (> {model_tolerance:.0%})",
+        f"traced BRDF by {fit_error:.1%} (> {tolerance:.1%})",
         pixels,
     )
 
@@ -113,11 +134,28 @@ def body_tint(body_rgb: tuple[float, float, float], grey: float, ior: float) -> 
 
 
 def compact_surface(
-    model: MicrofacetBRDF, body_rgb: tuple[float, float, float], grey: float
-) -> CompactSurface:
-    """Representation (a) from a fitted model; the fit's effective body albedo is given the design's tint."""
+    model: MicrofacetBRDF | TabulatedMicrofacet, body_rgb: tuple[float, float, float], grey: float
+) -> CompactSurface | TabulatedSurface:
+    """Representation (a) from a compact model; the model's (grey) body albedo is given the design's tint.
+
+    An analytic model becomes a :class:`CompactSurface`, the tabulated-NDF model a
+    :class:`render.mitsuba_tabulated.TabulatedSurface`.
+    """
     scale = model.body_albedo / grey if grey > 0 else 0.0
     rgb = tuple(min(1.0, c * scale) for c in body_rgb)
+    if isinstance(model, TabulatedMicrofacet):
+        return TabulatedSurface(
+            model.ndf.density,
+            model.ndf.extent,
+            model.ndf.spike_weight,
+            model.spike_alpha,
+            model.ndf.area,
+            model.ms_factor,
+            model.surface_albedo,
+            model.body_kernel,
+            model.ior,
+            rgb,  # type: ignore[arg-type]
+        )
     return CompactSurface(
         model.distribution,
         model.alpha_u,

@@ -13,7 +13,7 @@ import pytest
 from scipy.ndimage import gaussian_filter
 
 from noise.heightfield import HeightField
-from render.appearance import gloss_units, predict_appearance
+from render.appearance import gloss_units, haze_index, predict_appearance
 from render.brdf_fit import fit_microfacet, relative_error
 from render.brdf_model import MicrofacetBRDF, bin_average
 from render.fresnel import diffuse_fresnel_reflectance, fresnel_dielectric
@@ -26,16 +26,13 @@ from render.gonio import (
     projected_solid_angle,
     rays_for_lobe_error,
 )
+from render.gonio import facet_slopes as gonio_facet_slopes
 from render.microfacet import slope_roughness
 
 
 def facet_slopes(h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Slopes of both triangles of every periodic cell (unit pitch), as the tracer sees them."""
-    hr, hu = np.roll(h, -1, 1), np.roll(h, -1, 0)
-    hru = np.roll(hr, -1, 0)
-    gx = np.concatenate([(hr - h).ravel(), (hru - hu).ravel()])
-    gy = np.concatenate([(hru - hr).ravel(), (hu - h).ravel()])
-    return gx, gy
+    """Slopes of the four triangles of every periodic cell (unit pitch), as the tracer sees them."""
+    return gonio_facet_slopes(h, 1.0, 1.0)
 
 
 def gaussian_surface(rms_slope: float, n: int = 1024, corr_px: float = 1.5, seed: int = 0) -> np.ndarray:
@@ -191,6 +188,52 @@ def test_same_seed_same_table_other_seed_other_table():
 # --- Anisotropy: ridges and sinusoids -----------------------------------------------------
 
 
+def grooved_surface(n: int = 128, across: float = 0.25, along: float = 0.036, angle_deg: float = 30.0,
+                    across_px: float = 4.0, seed: int = 0) -> np.ndarray:  # fmt: skip
+    """A periodic anisotropic Gaussian relief (unit pitch): grooves along ``angle_deg``.
+
+    White noise filtered by a Gaussian of ``across_px`` across the grooves and
+    ``across_px * across / along`` along them, scaled to an RMS slope ``across`` across
+    (the band-limited surface's own slopes, from its spectrum), so ``along`` along.
+    """
+    rng = np.random.default_rng(seed)
+    w = np.fft.fft2(rng.normal(size=(n, n)))
+    k = 2 * math.pi * np.fft.fftfreq(n)
+    ky, kx = np.meshgrid(k, k, indexing="ij")
+    a = math.radians(angle_deg)
+    ku, kv = kx * math.cos(a) + ky * math.sin(a), -kx * math.sin(a) + ky * math.cos(a)
+    spectrum = w * np.exp(-0.5 * ((ku * across_px * across / along) ** 2 + (kv * across_px) ** 2))
+    slope_across = np.real(np.fft.ifft2(1j * kv * spectrum)).std()
+    return np.real(np.fft.ifft2(spectrum)) * (across / slope_across)
+
+
+def test_the_highlight_does_not_depend_on_how_cells_are_triangulated():
+    # Mirroring the relief flips the direction a fixed diagonal would take against its
+    # grooves: with two triangles per cell the anisotropy moved by 20 % here (7.56 against
+    # 6.05) and the azimuth by 0.2 degrees; the four-triangle cell mirrors with the relief.
+    from render.brdf_fit import lobe_alpha
+
+    h = grooved_surface()
+    gx, gy = gonio_facet_slopes(h, 1.0, 1.0)
+    mx, my = gonio_facet_slopes(h[:, ::-1].copy(), 1.0, 1.0)
+    # The facets of the mirrored relief are the mirrored facets, exactly (as sets).
+    key = lambda a, b: np.lexsort((np.round(b, 12), np.round(a, 12)))  # noqa: E731
+    np.testing.assert_allclose(np.sort(-gx), np.sort(mx), atol=1e-12)
+    mirrored = key(-gx, gy), key(mx, my)
+    np.testing.assert_allclose(gy[mirrored[0]], my[mirrored[1]], atol=1e-12)
+    wi = direction_from_angles(0.0, 0.0)
+    shapes = []
+    for relief in (h, h[:, ::-1].copy(), h.T.copy()):
+        t = estimate_brdf(relief, 1.0, 1.0, wi, rays=100_000, n_theta=45, n_phi=90, seed=0)
+        au, av, az = lobe_alpha(t.f_specular[0], t.theta_o_edges, t.phi_o_edges)
+        shapes.append((au / av, math.degrees(az)))
+    (a0, z0), (a1, z1), (a2, z2) = shapes
+    assert a0 > 5.0 and abs(z0 - 120.0) < 1.0  # slopes across the grooves, at 120 degrees
+    assert a1 == pytest.approx(a0, rel=0.02) and a2 == pytest.approx(a0, rel=0.02)
+    assert 180.0 - z1 == pytest.approx(z0, abs=0.2)  # mirrored in x
+    assert 270.0 - z2 == pytest.approx(z0, abs=0.2)  # mirrored about the diagonal x = y
+
+
 def test_ridges_stretch_the_highlight_across_them_and_the_metrics_say_so():
     n = 256
     x = np.arange(n)
@@ -222,6 +265,19 @@ def test_polished_resin_reads_the_glossmeter_values_of_its_index():
         )  # rounded to 3 places
     assert gloss_units(fresnel_dielectric(math.cos(math.radians(60)), 1.567), 60.0) == pytest.approx(100.0)
     assert ap.metrics["haze"] == pytest.approx(ap.metrics["gloss_gu"]["60"] - ap.metrics["gloss_gu"]["20"])
+    assert "ASTM D4039" in ap.metrics["haze_reason"]
+
+
+def test_haze_is_reported_only_where_astm_d4039_defines_it():
+    # High gloss (G60 above 70 GU, ASTM D4039-09 section 4.2): G60 - G20.
+    value, reason = haze_index({"20": 80.0, "60": 88.0})
+    assert value == pytest.approx(8.0) and "ASTM D4039" in reason
+    # Matte: G60 at or below 70 GU, whatever G20 reads (the marble example read G20 25.7 and
+    # G60 11.1, a "haze" of -14.6).
+    value, reason = haze_index({"20": 25.653, "60": 11.064})
+    assert value is None and reason.startswith("n/a") and "70 GU" in reason
+    value, reason = haze_index({"20": 95.0, "60": 90.0})
+    assert value is None and "20-degree" in reason
 
 
 def test_fit_recovers_the_roughness_and_body_of_a_gaussian_surface():
@@ -282,14 +338,21 @@ def test_rays_through_vertices_and_along_edges_always_hit_the_right_height():
     h = rng.uniform(-0.5, 0.5, size=(12, 12))
     mip, off, mnx, nl = max_mipmap(h)
     zmax, zmin = h.max(), h.min()
-    # Vertical rays exactly through every vertex and every edge midpoint.
+    # Vertical rays exactly through every vertex, every edge midpoint, every cell's centre
+    # (where its four triangles meet) and points on both diagonals.
     for r in range(12):
         for c in range(12):
+            h00, h10 = h[r, c], h[r, (c + 1) % 12]
+            h01, h11 = h[(r + 1) % 12, c], h[(r + 1) % 12, (c + 1) % 12]
+            centre = 0.25 * (h00 + h10 + h01 + h11)
             for dx, dy, expected in (
-                (0.0, 0.0, h[r, c]),
-                (0.5, 0.0, 0.5 * (h[r, c] + h[r, (c + 1) % 12])),
-                (0.0, 0.5, 0.5 * (h[r, c] + h[(r + 1) % 12, c])),
-                (0.5, 0.5, 0.5 * (h[r, c] + h[(r + 1) % 12, (c + 1) % 12])),  # on the diagonal
+                (0.0, 0.0, h00),
+                (0.5, 0.0, 0.5 * (h00 + h10)),
+                (0.0, 0.5, 0.5 * (h00 + h01)),
+                (0.5, 0.5, centre),
+                (0.25, 0.25, 0.5 * (h00 + centre)),  # on the diagonal v00 - v11
+                (0.75, 0.25, 0.5 * (h10 + centre)),  # on the diagonal v10 - v01
+                (0.25, 0.75, 0.5 * (h01 + centre)),
             ):
                 res = _trace(
                     h,

@@ -67,7 +67,44 @@ def test_height_map_gives_the_table_the_plot_and_the_metrics(tmp_path, ripple_np
     assert min(m["highlight"]["azimuth_deg"], 180 - m["highlight"]["azimuth_deg"]) < 10
     assert set(m["gloss_gu"]) == {"20", "60", "85"}
     assert Image.open(plot).size[0] > 300
-    assert "gloss" in result.output and "fitted" in result.output
+    assert "gloss" in result.output and "compact model" in result.output and "analytic fit" in result.output
+    assert m["fit"]["distribution"] == "tabulated" and m["representation"]["use"] in ("model", "table")
+    assert m["haze"] is None or m["haze_reason"].startswith("G60 - G20")
+    assert set(table) >= {
+        "model_ndf",
+        "model_lambda_area",
+        "model_relative_error",
+        "model_used",
+        "fit_params",
+    }
+
+
+def test_the_chooser_follows_its_rule_and_says_so(tmp_path, ripple_npy):
+    # max(10 %, 3 x table noise): the model stands in for the table exactly when its error is
+    # within that, and the metrics, the file and the command say which was used and why.
+    out, metrics = tmp_path / "w.npz", tmp_path / "w.json"
+    result = brdf(ripple_npy, "--pitch-mm", 0.025, "--rays", 200, "-o", out, "--json", metrics)
+    assert result.exit_code == 0, result.output
+    m = json.loads(metrics.read_text())
+    tolerance = max(0.10, 3 * m["fit"]["table_noise"])
+    assert m["representation"]["tolerance"] == pytest.approx(tolerance, rel=1e-4)
+    within = m["fit"]["relative_error"] is not None and m["fit"]["relative_error"] <= tolerance
+    assert (m["representation"]["use"] == "model") == within
+    assert int(load(out)["model_used"]) == int(within)
+    assert bool(m["warnings"]) != within and ("warning:" in result.output) != within
+
+
+def test_a_model_that_misses_or_cannot_be_checked_is_a_warning():
+    # The table stands in when the error is above the rule, or cannot be measured at all.
+    from render.appearance import model_or_table
+    from render.brdf_fit import FitResult
+
+    for error, noise, words in ((0.35, 0.05, "35.0%"), (float("nan"), float("nan"), "cannot be measured")):
+        choice, warnings = model_or_table(FitResult(None, error, 10, noise))
+        assert choice["use"] == "table" and words in choice["reason"]
+        assert warnings and "traced table stands in" in warnings[0] and words in warnings[0]
+    choice, warnings = model_or_table(FitResult(None, 0.12, 10, 0.05))  # within 3 x 5 %
+    assert choice["use"] == "model" and not warnings
 
 
 def test_same_input_same_bytes(tmp_path, ripple_npy):
@@ -108,6 +145,8 @@ def test_flat_image_is_polished_resin(tmp_path):
     )
     assert m["gloss_gu"]["60"] == pytest.approx(float(expected), abs=1e-3)
     assert load(out)["albedo"][0] == pytest.approx(0.04)
+    # Polished resin is high gloss: its haze index is defined (ASTM D4039), the index mismatch's.
+    assert m["haze"] == pytest.approx(m["gloss_gu"]["60"] - m["gloss_gu"]["20"]) and m["haze"] > 0
 
 
 def test_mesh_tile_and_its_height_map_agree(tmp_path, ripple_npy):

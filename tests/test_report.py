@@ -191,6 +191,12 @@ def test_metric_rows_measure_the_miss():
     assert rows["haze"]["verdict"] == "miss" and rows["haze"]["miss"] == pytest.approx(13.0)
     assert rows["anisotropy"]["verdict"] == "not predicted"
     assert rows["gloss_20"]["verdict"] == "no target"
+    # Haze where ASTM D4039 does not define it: n/a, the reason, and the target unchecked.
+    why = "n/a: the 60-degree gloss 63.0 GU is not above the 70 GU from which ASTM D4039 defines haze"
+    manifest["brdf"] = {**manifest["brdf"], "haze": None, "haze_reason": why}
+    rows = {r["metric"]: r for r in metric_rows(design, manifest)}
+    assert rows["haze"]["value"] is None
+    assert rows["haze"]["verdict"].startswith(why) and "cannot be checked" in rows["haze"]["verdict"]
 
 
 def test_sweep_is_small_and_never_larger_than_the_preview():

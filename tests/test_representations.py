@@ -14,7 +14,7 @@ from render.brdf_model import MicrofacetBRDF
 from render.fresnel import fresnel_dielectric
 from render.mitsuba_adapter import StudioLight, choose_variant, render_resin_mesh
 from render.mitsuba_bsdfs import CompactSurface, TableSurface
-from render.representation import Choice, body_tint, choose_representation, compact_surface
+from render.representation import Choice, body_tint, choose_representation, compact_surface, tolerance_for
 
 UNIFORM = StudioLight(radiance=0.0, environment=1.0, highlight_radiance=0.0)  # a uniform white world
 
@@ -63,6 +63,19 @@ def test_chooser_takes_geometry_where_features_span_pixels_and_a_brdf_where_they
     assert isinstance(far, Choice) and far.pixels_per_feature == pytest.approx(0.1)
     with pytest.raises(ValueError):
         choose_representation(0.0, 1.0, 0.1)
+
+
+def test_the_model_stands_in_for_the_table_within_max_10_percent_and_three_times_the_noise():
+    assert tolerance_for(0.01) == pytest.approx(0.10)  # a quiet table: 10 %
+    assert tolerance_for(0.05) == pytest.approx(0.15)  # a noisy one: what its noise could make
+    assert tolerance_for(math.nan) == pytest.approx(0.10)
+    # 12 % misses a quiet table, not one whose own noise is 5 %.
+    assert choose_representation(2.0, 20.0, 0.12, table_noise=0.01).mode == "table"
+    near = choose_representation(2.0, 20.0, 0.12, table_noise=0.05)
+    assert near.mode == "model" and "12.0%" in near.reason
+    miss = choose_representation(2.0, 20.0, 0.16, table_noise=0.05)
+    assert miss.mode == "table" and "15.0%" in miss.reason
+    assert choose_representation(2.0, 20.0, 0.12, table_noise=0.01, model_tolerance=0.2).mode == "model"
 
 
 def test_body_tint_turns_the_grey_trace_into_each_channel():

@@ -11,8 +11,8 @@ every bounce, Fresnel splitting, the pigmented body, binning), with a black body
 with a pigmented one, beside raw first-hit queries on the *same* primary rays (the
 estimator's own origins, regenerated bit for bit from its random stream, direction
 ``-wi``) by ``embreex`` (Embree) and by Mitsuba 3's ``scene.ray_intersect`` on the
-``llvm_ad_rgb`` variant, over a mesh that is the tracer's surface exactly: two
-triangles per cell with the diagonal from sample (r, c) to (r+1, c+1), the wrap-around
+``llvm_ad_rgb`` variant, over a mesh that is the tracer's surface exactly: four
+triangles per cell around a centre vertex at the mean of its corners, the wrap-around
 cells included, and a ring of periodic copies wide enough that every first hit of a
 primary ray lies on the mesh. The numba tracer's own first-hit query (``render.gonio.first_hit``)
 is timed on the same rays too, and the peers' first hits are checked against it.
@@ -93,12 +93,10 @@ def design_tile(side: int = SIDE) -> tuple[np.ndarray, float, float, str]:
 
 
 def tracer_slopes(heights: np.ndarray, px: float, py: float) -> tuple[np.ndarray, np.ndarray]:
-    """x and y slopes of both triangles of every periodic cell, as the tracer sees them."""
-    hr, hu = np.roll(heights, -1, 1), np.roll(heights, -1, 0)
-    hru = np.roll(hr, -1, 0)
-    gx = np.concatenate([(hr - heights).ravel(), (hru - hu).ravel()]) / px
-    gy = np.concatenate([(hru - hr).ravel(), (hu - heights).ravel()]) / py
-    return gx, gy
+    """x and y slopes of the four triangles of every periodic cell, as the tracer sees them."""
+    from render.gonio import facet_slopes
+
+    return facet_slopes(heights, px, py)
 
 
 def gaussian_tile(
@@ -198,7 +196,7 @@ def _throughput(geometries, estimate, repeats, notes, rates) -> tuple[list[dict[
             rates[(name, theta)] = rate
             rows.append(row)
         notes.append(
-            f"{name}: mesh of {faces.shape[0]:,} triangles (the 512^2 tile's {2 * SIDE * SIDE:,} and a "
+            f"{name}: mesh of {faces.shape[0]:,} triangles (the 512^2 tile's {4 * SIDE * SIDE:,} and a "
             f"ring of {mx} x {my} periodic cells so every first hit is on it)"
             + (f"; Embree BVH {peers.embree_build_s:.2f} s" if peers.embree is not None else "")
             + (f", Mitsuba scene {peers.mitsuba_build_s:.2f} s" if peers.mitsuba is not None else "")

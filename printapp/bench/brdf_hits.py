@@ -18,26 +18,15 @@ from numba import njit, prange
 
 from noise.hashing import mix64, seed_key
 from render.gonio import first_hit, max_mipmap, primary_origin
+from render.gonio import lit_window as gonio_lit_window
 
 
 def lit_window(heights: np.ndarray, px: float, py: float, wis: np.ndarray, periodic: bool) -> np.ndarray:
     """First cell and extent (cells) of the estimator's lit window per direction, x then y.
 
-    The same rule as ``render.gonio.estimate_brdf`` (margins for a patch that does not tile).
+    :func:`render.gonio.lit_window`, the estimator's own rule.
     """
-    h = heights - heights.mean()
-    zmax, zmin = float(h.max()), float(h.min())
-    ny, nx = h.shape
-    n_in = wis.shape[0]
-    window = np.zeros((n_in, 4))
-    window[:, 1], window[:, 3] = nx, ny
-    if not periodic:
-        travel = (zmax - zmin) * np.hypot(wis[:, 0], wis[:, 1]) / wis[:, 2]
-        margin_x = np.minimum(np.maximum(np.ceil(travel / px) + 2.0, nx // 8), nx // 4)
-        margin_y = np.minimum(np.maximum(np.ceil(travel / py) + 2.0, ny // 8), ny // 4)
-        window[:, 0], window[:, 1] = margin_x, nx - 2 * margin_x
-        window[:, 2], window[:, 3] = margin_y, ny - 2 * margin_y
-    return window
+    return gonio_lit_window(heights - heights.mean(), px, py, wis, periodic)
 
 
 @njit(cache=True, parallel=True)
@@ -106,9 +95,11 @@ def periodic_mesh(
     """The tracer's surface as a triangle mesh: vertices (float64, mm) and faces (int32).
 
     Cells ``-margin .. n + margin - 1`` in each direction, heights wrapped (relative to
-    their mean, as the tracer holds them). Face ``k`` of ``C`` cells (row-major over the
-    extended grid) is the lower triangle (v00, v10, v11) for ``k < C`` and the upper one
-    (v00, v11, v01) for ``k >= C``; both face up. See :func:`face_cells`.
+    their mean, as the tracer holds them). Each cell is four triangles around a centre
+    vertex at the mean of its corners, as the tracer cuts it; face ``k`` of ``C`` cells
+    (row-major over the extended grid) is triangle ``k // C`` (0 bottom (v00, v10, c),
+    1 right (v10, v11, c), 2 top (v11, v01, c), 3 left (v01, v00, c)) of cell ``k % C``.
+    All face up. See :func:`face_cells`.
     """
     h = heights - heights.mean()
     ny, nx = h.shape
@@ -116,25 +107,43 @@ def periodic_mesh(
     rows = np.arange(-margin_y, ny + margin_y + 1)
     z = h[np.ix_(rows % ny, cols % nx)]
     xx, yy = np.meshgrid(cols * float(px), rows * float(py))
-    vertices = np.column_stack([xx.ravel(), yy.ravel(), z.ravel()])
+    corners = np.column_stack([xx.ravel(), yy.ravel(), z.ravel()])
+    # Centres, computed as the tracer computes them (the same sums in the same order).
+    zc = 0.25 * ((z[:-1, :-1] + z[1:, 1:]) + (z[:-1, 1:] + z[1:, :-1]))
+    centres = np.column_stack(
+        [
+            (0.5 * (xx[:-1, :-1] + xx[:-1, 1:])).ravel(),
+            (0.5 * (yy[:-1, :-1] + yy[1:, :-1])).ravel(),
+            zc.ravel(),
+        ]
+    )
+    vertices = np.vstack([corners, centres])
     vx = cols.size
     r, c = np.meshgrid(np.arange(rows.size - 1), np.arange(vx - 1), indexing="ij")
     v00 = (r * vx + c).ravel()
     v10, v01 = v00 + 1, v00 + vx
     v11 = v01 + 1
-    faces = np.concatenate([np.column_stack([v00, v10, v11]), np.column_stack([v00, v11, v01])])
+    vc = corners.shape[0] + (r * (vx - 1) + c).ravel()
+    faces = np.concatenate(
+        [
+            np.column_stack([v00, v10, vc]),
+            np.column_stack([v10, v11, vc]),
+            np.column_stack([v11, v01, vc]),
+            np.column_stack([v01, v00, vc]),
+        ]
+    )
     return vertices, faces.astype(np.int32)
 
 
 def face_cells(
     prim: np.ndarray, shape: tuple[int, int], margin_x: int, margin_y: int
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Unwrapped cell (ci along x, cj along y) and triangle (0 lower, 1 upper) of mesh faces."""
+    """Unwrapped cell (ci along x, cj along y) and triangle (0 bottom, 1 right, 2 top, 3 left) of faces."""
     ny, nx = shape
     width = nx + 2 * margin_x
     n_cells = (ny + 2 * margin_y) * width
     prim = np.asarray(prim, dtype=np.int64)
-    tri = (prim >= n_cells).astype(np.int64)
+    tri = prim // n_cells
     cell = prim - tri * n_cells
     return cell % width - margin_x, cell // width - margin_y, tri
 

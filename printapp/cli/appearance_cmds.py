@@ -81,8 +81,9 @@ def brdf(
     """Predict the BRDF of a printed surface by tracing rays through its microgeometry.
 
     Writes the bin-averaged table (brdf.npz), and optionally a plot and the appearance
-    metrics: albedo, gloss at 20/60/85 deg (ISO 2813), haze, the highlight's
-    anisotropy, and the fitted compact microfacet model with its error.
+    metrics: albedo, gloss at 20/60/85 deg (ISO 2813), haze (ASTM D4039, high-gloss
+    surfaces only), the highlight's anisotropy, and the compact microfacet model of the
+    relief's own facets with its error (a warning where the traced table must stand in).
     """
     from printapp.brdf import predict_file
 
@@ -111,19 +112,29 @@ def brdf(
     m = result.predicted.metrics
     fit, hl = m["fit"], m["highlight"]
     ny, nx = result.field.shape
-    spike = f", {fit['spike_weight']:.0%} of it in a mirror-sharp spike" if fit["spike_weight"] > 0 else ""
+    haze = f"haze {m['haze']:.1f}" if m["haze"] is not None else f"haze {m['haze_reason']}"
     out.print(
         f"{source.name} ({result.origin}, {nx} x {ny} samples): albedo "
         f"{m['albedo'][0]:.3f} at normal incidence; gloss {m['gloss_gu']['20']:.1f} / "
-        f"{m['gloss_gu']['60']:.1f} / {m['gloss_gu']['85']:.1f} GU at 20/60/85 deg, haze {m['haze']:.1f}; "
+        f"{m['gloss_gu']['60']:.1f} / {m['gloss_gu']['85']:.1f} GU at 20/60/85 deg, {haze}; "
         f"highlight anisotropy {hl['anisotropy']:.2f} along {hl['azimuth_deg']:.0f} deg"
     )
+    spike = f", {fit['spike_weight']:.0%} of it flat (a mirror spike)" if fit["spike_weight"] > 0 else ""
     out.print(
-        f"fitted {fit['distribution']}: alpha {fit['alpha_u']:.3g} x {fit['alpha_v']:.3g} along "
-        f"{fit['azimuth_deg']:.0f} deg{spike}, body albedo {fit['body_albedo']:.3f}; relative error "
-        f"{percent(fit['relative_error'])} over {fit['bins']} bins (the table's own noise there: "
-        f"{percent(fit['table_noise'])})"
+        f"compact model: the relief's own facet normals, tabulated (slope roughness {fit['alpha_u']:.3g} x "
+        f"{fit['alpha_v']:.3g} along {fit['azimuth_deg']:.0f} deg{spike}), body albedo "
+        f"{fit['body_albedo']:.3f}; relative error {percent(fit['relative_error'])} over {fit['bins']} bins "
+        f"(the table's own noise there: {percent(fit['table_noise'])}); {m['representation']['reason']}"
     )
+    a = m["fit_analytic"]
+    a_spike = f", {a['spike_weight']:.0%} in a mirror spike" if a["spike_weight"] > 0 else ""
+    out.print(
+        f"analytic fit, for comparison: {a['distribution']} alpha {a['alpha_u']:.3g} x "
+        f"{a['alpha_v']:.3g} along "
+        f"{a['azimuth_deg']:.0f} deg{a_spike}; relative error {percent(a['relative_error'])}"
+    )
+    for line in m["warnings"]:
+        warn(line)
     errors = ", ".join(percent(e) for e in m["lobe_error"])
     rays_used = m["rays_per_direction"]
     low, high = min(rays_used), max(rays_used)

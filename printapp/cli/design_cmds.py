@@ -25,12 +25,16 @@ def _summary(name: str, manifest: dict[str, Any]) -> None:
     b = m.get("brdf")
     if b:
         gloss = b["gloss_gu"]
+        haze = f"haze {b['haze']:.1f}" if b.get("haze") is not None else f"haze {b.get('haze_reason', 'n/a')}"
         out.print(
             f"predicted gloss {gloss['20']:.1f} / {gloss['60']:.1f} / {gloss['85']:.1f} GU at 20/60/85 deg, "
-            f"haze {b['haze']:.1f}; fitted {b['fit']['distribution']} model within "
+            f"{haze}; compact {b['fit']['distribution']} model within "
             f"{percent(b['fit']['relative_error'])} of the traced BRDF "
-            f"(table noise {percent(b['fit']['table_noise'])})"
+            f"(table noise {percent(b['fit']['table_noise'])}; analytic "
+            f"{b['fit_analytic']['distribution']} fit {percent(b['fit_analytic']['relative_error'])})"
         )
+        for line in b.get("warnings", []):
+            warn(line)
     rendered = m.get("render")
     if rendered:
         out.print(f"preview rendered as {rendered['representation']}: {rendered['representation_reason']}")

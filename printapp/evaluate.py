@@ -85,6 +85,9 @@ def target_misses(design: Design, metrics: dict[str, float]) -> list[str]:
         key = name if name in metrics and name not in SLOPE_TARGETS else f"surrogate_{name}"
         value = metrics[key]
         lo, hi = target
+        if value is None:  # haze where ASTM D4039 does not define it (G60 not above 70 GU)
+            misses.append(f"{name} cannot be checked against the target [{lo:g}, {hi:g}]: it is n/a here")
+            continue
         if not lo <= value <= hi:
             miss = (lo - value) if value < lo else (value - hi)
             misses.append(f"{name} {value:.2f} misses the target [{lo:g}, {hi:g}] by {miss:.2f}")
@@ -164,7 +167,7 @@ def evaluate_design(
                 "gloss_20": _round(gloss["20"]),
                 "gloss_60": _round(gloss["60"]),
                 "gloss_85": _round(gloss["85"]),
-                "haze": _round(traced["haze"]),
+                "haze": None if traced["haze"] is None else _round(traced["haze"]),
                 "highlight_azimuth_deg": _round(traced["highlight"]["azimuth_deg"]),
                 "highlight_anisotropy": _round(traced["highlight"]["anisotropy"]),
             }

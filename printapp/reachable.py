@@ -107,13 +107,16 @@ def chart_png(rows: list[dict[str, Any]], title: str) -> bytes:
         sc = a.scatter(xs, ys, c=cs, cmap="viridis", norm=norm, marker=marker, s=18, alpha=0.85, label=label)
         b.scatter([g60[i] for i in idx], [aniso[i] for i in idx], marker=marker, s=18, alpha=0.6, label=label)
     traced = [r for r in ok if "gloss_60" in r]
-    xs, ys = [r["haze"] for r in traced], [r["gloss_60"] for r in traced]
+    xs, ys = [r["gloss_60"] - r["gloss_20"] for r in traced], [r["gloss_60"] for r in traced]
     a.scatter(xs, ys, facecolors="none", edgecolors="red", s=60, label="traced (same designs)")
     for r in traced:
         a.plot(
-            [r["surrogate_haze"], r["haze"]], [r["surrogate_gloss_60"], r["gloss_60"]], color="red", lw=0.6
+            [r["surrogate_haze"], r["gloss_60"] - r["gloss_20"]],
+            [r["surrogate_gloss_60"], r["gloss_60"]],
+            color="red",
+            lw=0.6,
         )
-    a.set_xlabel("haze G60 - G20 (GU)")
+    a.set_xlabel("G60 - G20 (GU; the haze index of ASTM D4039 above 70 GU at 60 degrees)")
     a.set_ylabel("60-degree gloss (GU)")
     a.legend(fontsize=7, loc="lower right")
     fig.colorbar(sc, ax=a, label="anisotropy (slopes)")

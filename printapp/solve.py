@@ -80,7 +80,7 @@ def value_of(name: str, metrics: dict[str, float], traced: bool) -> float:
     """The metric a target is checked against: traced where asked and available, else the surrogate's."""
     from printapp.evaluate import SLOPE_TARGETS
 
-    if traced and name not in SLOPE_TARGETS and name in metrics:
+    if traced and name not in SLOPE_TARGETS and metrics.get(name) is not None:
         return metrics[name]
     return metrics[f"surrogate_{name}"]
 

@@ -2,8 +2,8 @@
 
 The cheap predictor (the surrogate) that ``printapp solve`` searches on, before it confirms
 its best candidates with the traced BRDF (:func:`render.appearance.predict_appearance`).
-It sees the relief as the tracer does, two triangles per cell (diagonal from sample
-``(r, c)`` to ``(r + 1, c + 1)``), and takes one bounce off each: a collimated beam at
+It sees the relief as the tracer does, four triangles per cell around its centre (the mean
+of its corners), and takes one bounce off each: a collimated beam at
 ``theta`` in the xz plane lights a facet of normal ``n`` with the share
 ``(wi . n) / (n_z cos theta)`` of its projected area, the facet reflects the Fresnel fraction
 ``R(wi . n)`` into the mirror direction about ``n``, and what lands in the ISO 2813 receptor
@@ -31,14 +31,17 @@ from render.microfacet import slope_roughness
 
 
 def facet_normals(field: HeightField) -> np.ndarray:
-    """Unit normals ``(2 (ny-1) (nx-1), 3)`` of the field's triangles (lower triangles first), each
-    standing for half a cell of projected area."""
+    """Unit normals ``(4 (ny-1) (nx-1), 3)`` of the field's triangles, four per cell around its centre
+    (the mean of its corners), as the tracer sees them (:func:`render.gonio.facet_slopes`): bottom,
+    right, top and left triangles in blocks, each standing for a quarter of a cell of projected area."""
     h = field.heights_mm
     px, py = field.pitch_x_mm, field.pitch_y_mm
     h00, h10, h01, h11 = h[:-1, :-1], h[:-1, 1:], h[1:, :-1], h[1:, 1:]
-    # lower (v00, v10, v11) and upper (v00, v11, v01) triangles
-    sx = np.concatenate([((h10 - h00) / px).ravel(), ((h11 - h01) / px).ravel()])
-    sy = np.concatenate([((h11 - h10) / py).ravel(), ((h01 - h00) / py).ravel()])
+    hc = 0.25 * ((h00 + h11) + (h10 + h01))
+    gx = [h10 - h00, (h10 + h11) - 2.0 * hc, h11 - h01, 2.0 * hc - (h00 + h01)]
+    gy = [2.0 * hc - (h00 + h10), h11 - h10, (h01 + h11) - 2.0 * hc, h01 - h00]
+    sx = np.concatenate([g.ravel() for g in gx]) / px
+    sy = np.concatenate([g.ravel() for g in gy]) / py
     n = np.column_stack([-sx, -sy, np.ones_like(sx)])
     return n / np.linalg.norm(n, axis=1, keepdims=True)
 
@@ -66,9 +69,9 @@ def facet_openness(field: HeightField, theta_deg: float) -> np.ndarray:
         _row_horizon(h, field.pitch_x_mm, cot, True) & _row_horizon(h, field.pitch_x_mm, cot, False)
     ).astype(np.float64)
     o00, o10, o01, o11 = both[:-1, :-1], both[:-1, 1:], both[1:, :-1], both[1:, 1:]
-    lower = (o00 + o10 + o11) / 3.0
-    upper = (o00 + o11 + o01) / 3.0
-    return np.concatenate([lower.ravel(), upper.ravel()])
+    oc = 0.25 * (o00 + o10 + o01 + o11)  # the centre, open as its corners are on average
+    sides = [(o00 + o10 + oc), (o10 + o11 + oc), (o11 + o01 + oc), (o01 + o00 + oc)]
+    return np.concatenate([(t / 3.0).ravel() for t in sides])
 
 
 def aperture_fraction(

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from noise.heightfield import HeightField
-from render.appearance import DEFAULT_INCIDENT_DEG, GLOSS_APERTURES_DEG, gloss_units
+from render.appearance import DEFAULT_INCIDENT_DEG, GLOSS_APERTURES_DEG, gloss_units, haze_index
 from render.brdf_fit import lobe_alpha
 from render.gonio import direction_from_angles, estimate_brdf
 
@@ -85,12 +85,14 @@ def traced_gloss(
     )
     gu = gloss_units(gloss_table.aperture, np.array([a for a, _ in gloss_inc]))
     gloss = {str(a): round(float(gu[i]), 3) for i, a in enumerate(angles)}
+    haze, haze_reason = haze_index(gloss)
     alpha_long, alpha_short, azimuth = lobe_alpha(
         table.f_specular[normal], table.theta_o_edges, table.phi_o_edges
     )
     return {
         "gloss_gu": gloss,
-        "haze": round(gloss["60"] - gloss["20"], 3),
+        "haze": haze,
+        "haze_reason": haze_reason,
         "highlight": {
             "alpha_long": round(alpha_long, 5),
             "alpha_short": round(alpha_short, 5),

@@ -10,6 +10,7 @@ within the same bound: triangles, the largest error actually left, time (median)
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
@@ -71,6 +72,34 @@ def _row(
     }
 
 
+def adaptive_chart(rows: list[dict], reliefs: Iterable[str], path: Path) -> None:
+    """Largest height error against triangles, one panel per relief, greedy insertion beside QEM."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.ticker import NullFormatter
+
+    fig, axes = plt.subplots(1, len(reliefs), figsize=(11, 4), dpi=110)
+    for ax, name in zip(axes, reliefs, strict=True):
+        for method, style in (("greedy insertion", "o-"), ("QEM (fast-simplification), searched", "s--")):
+            pick = [r for r in rows if r["relief"] == name and r["method"] == method]
+            if pick:
+                ax.semilogx(
+                    [r["triangles"] for r in pick], [r["max_error_um"] for r in pick], style, label=method
+                )
+        full = next(r for r in rows if r["relief"] == name and r["method"] == "full grid")
+        ax.plot([full["triangles"]], [0.0], "k^", label="full grid")
+        ax.xaxis.set_minor_formatter(NullFormatter())  # crowded labels between decades
+        ax.set_xlabel("triangles in the slab")
+        ax.set_ylabel("largest height error at the samples (um)")
+        ax.set_title(name, fontsize=9)
+        ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+
+
 def bench_adaptive(repeats: int) -> StageResult:
     """Triangles of the adaptive top against the height error they leave, beside the full grid and QEM."""
     import noise
@@ -111,28 +140,7 @@ def bench_adaptive(repeats: int) -> StageResult:
     )
 
     def chart(path: Path) -> None:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-
-        fig, axes = plt.subplots(1, len(reliefs), figsize=(11, 4), dpi=110)
-        for ax, name in zip(axes, reliefs, strict=True):
-            for method, style in (("greedy insertion", "o-"), ("QEM (fast-simplification), searched", "s--")):
-                pick = [r for r in rows if r["relief"] == name and r["method"] == method]
-                if pick:
-                    ax.semilogx(
-                        [r["triangles"] for r in pick], [r["max_error_um"] for r in pick], style, label=method
-                    )
-            full = next(r for r in rows if r["relief"] == name and r["method"] == "full grid")
-            ax.plot([full["triangles"]], [0.0], "k^", label="full grid")
-            ax.set_xlabel("triangles in the slab")
-            ax.set_ylabel("largest height error at the samples (um)")
-            ax.set_title(name, fontsize=9)
-            ax.legend(fontsize=7)
-        fig.tight_layout()
-        fig.savefig(path)
-        plt.close(fig)
+        adaptive_chart(rows, reliefs, path)
 
     return StageResult(
         "adaptive",

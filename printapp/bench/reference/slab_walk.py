@@ -1,4 +1,4 @@
-"""A plain Monte Carlo random walk in a scattering half-space or slab: where light that entered comes back out.
+"""A plain Monte Carlo random walk in a scattering half-space or slab: where entering light comes out.
 
 The slow, simple reference for :mod:`render.bssrdf`'s dipole. Photons enter at the origin,
 straight down; they fly exponential distances with the reduced extinction ``sigma_t'``,
@@ -46,7 +46,7 @@ def slab_exit_radii(
     thickness_mm: float = np.inf,
     seed: int = 0,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """As :func:`exit_radii` in a slab of ``thickness_mm``: radii of exits at the entry face, and at the far face.
+    """As :func:`exit_radii` in a slab of ``thickness_mm``: exit radii at the entry face and at the far face.
 
     Both faces have the relative index ``eta``.
     """

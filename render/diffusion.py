@@ -138,6 +138,8 @@ def diffuse_box(
     q = np.zeros((nz, ny, nx))
     depth = {"top": nz, "bottom": nz, "y0": ny, "y1": ny, "x0": nx, "x1": nx}
     for name, flux in entering.items():
+        if name not in depth:
+            raise ValueError(f"entering: unknown face {name!r}; expected one of {', '.join(depth)}")
         flux = np.asarray(flux, dtype=np.float64)
         frac = alpha * _depth_fractions(sigma_t, depth[name], float(sides[axis_of[name]]))
         if name == "top":
@@ -150,10 +152,8 @@ def diffuse_box(
             q += frac[::-1][None, :, None] * flux[:, None, :]
         elif name == "x0":
             q += frac[None, None, :] * flux[:, :, None]
-        elif name == "x1":
+        else:  # x1
             q += frac[::-1][None, None, :] * flux[:, :, None]
-        else:
-            raise ValueError(f"entering: unknown face {name!r}")
     rhs = q.ravel()
     if not np.any(rhs):
         zero = {k: np.zeros(v.shape) for k, v in faces.items()}

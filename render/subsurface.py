@@ -150,6 +150,13 @@ def box_cells(size_mm: tuple[float, float, float], transport_mfp_mm: float) -> t
     return tuple(max(2, round(s / h)) for s in size_mm)  # type: ignore[return-value]
 
 
+def resolves(size_mm: tuple[float, float, float], transport_mfp_mm: float) -> bool:
+    """Whether :func:`box_cells` can make cells of at most half the transport mean free path
+    for a box of ``size_mm`` (else the light's first scattering depth is not resolved)."""
+    cells = box_cells(size_mm, transport_mfp_mm)
+    return max(s / c for s, c in zip(size_mm, cells, strict=True)) <= transport_mfp_mm / 2.0
+
+
 def _cell_of(coords: np.ndarray, lo: float, length: float, cells: int) -> np.ndarray:
     """Indices of the cells (``cells`` equal parts of ``[lo, lo + length]``) that ``coords`` fall in."""
     k = np.floor((coords - lo) / length * cells).astype(np.int64)

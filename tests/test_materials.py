@@ -413,7 +413,7 @@ def test_translucent_example_renders_a_bssrdf_end_to_end(tmp_path):
 
     text = (ROOT / "examples" / "translucent_tile.toml").read_text()
     small = text.replace("width_px = 320", "width_px = 40").replace("height_px = 240", "height_px = 30")
-    small = small.replace("spp = 256", "spp = 2\nnoise = 1.0")
+    small = small.replace("spp = 16 ", "spp = 4 ")
     design_file = tmp_path / "translucent.toml"
     design_file.write_text(small)
     out = tmp_path / "out"
@@ -472,6 +472,12 @@ def test_design_material_validation_and_dense_resin_uses_the_albedo(tmp_path):
     )
     medium, record, kind = render_choice(fine, chosen, vertices)
     assert kind == "medium" and medium == chosen.appearance.medium and "resolves" in record["why"]
+    # forcing the BSSRDF there is refused in one sentence (exit 2)
+    from printapp.errors import PrintappError
+
+    bssrdf = fine.model_copy(update={"material": fine.material.model_copy(update={"translucency": "bssrdf"})})
+    with pytest.raises(PrintappError, match='translucency = "bssrdf": the BSSRDF is rendered for tiles'):
+        render_choice(bssrdf, chosen, vertices)
     # the translucent example's resin in a 12 x 12 x 3 mm tile: the BSSRDF
     thin = design_from_dict(
         {

@@ -150,11 +150,19 @@ def box_cells(size_mm: tuple[float, float, float], transport_mfp_mm: float) -> t
     return tuple(max(2, round(s / h)) for s in size_mm)  # type: ignore[return-value]
 
 
+COARSEST_CELL_OVER_MFP = 1.75
+"""The coarsest diffusion cell, in transport mean free paths, at which the BSSRDF is rendered:
+``printapp bench translucency`` measured 4.8 % error against the converged medium at 1.73
+(cells of 0.142 mm for 0.082 mm) and 6.2 % at 0.52; coarser was not measured."""
+
+
 def resolves(size_mm: tuple[float, float, float], transport_mfp_mm: float) -> bool:
-    """Whether :func:`box_cells` can make cells of at most half the transport mean free path
-    for a box of ``size_mm`` (else the light's first scattering depth is not resolved)."""
+    """Whether :func:`box_cells` can make cells of at most :data:`COARSEST_CELL_OVER_MFP`
+    transport mean free paths for a box of ``size_mm``."""
     cells = box_cells(size_mm, transport_mfp_mm)
-    return max(s / c for s, c in zip(size_mm, cells, strict=True)) <= transport_mfp_mm / 2.0
+    return (
+        max(s / c for s, c in zip(size_mm, cells, strict=True)) <= COARSEST_CELL_OVER_MFP * transport_mfp_mm
+    )
 
 
 def _cell_of(coords: np.ndarray, lo: float, length: float, cells: int) -> np.ndarray:

@@ -413,7 +413,7 @@ def test_translucent_example_renders_a_bssrdf_end_to_end(tmp_path):
 
     text = (ROOT / "examples" / "translucent_tile.toml").read_text()
     small = text.replace("width_px = 320", "width_px = 40").replace("height_px = 240", "height_px = 30")
-    small = small.replace("spp = 16 ", "spp = 4 ")
+    small = small.replace("spp = 64 ", "spp = 4 ")
     design_file = tmp_path / "translucent.toml"
     design_file.write_text(small)
     out = tmp_path / "out"

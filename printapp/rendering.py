@@ -234,7 +234,7 @@ def render_preview(
         **camera,
     )
     if medium is not None and translucency == "bssrdf":
-        from render.subsurface import lights_of, subsurface_tile
+        from render.subsurface import eye_of, lights_of, subsurface_tile
 
         if not isinstance(design.base, TileBase):
             raise ValueError("the BSSRDF is rendered for tiles only")
@@ -249,6 +249,7 @@ def render_preview(
             medium,
             design.material.refractive_index,
             lights_of(scene_dict),
+            eye_of(scene_dict),
         )
         scene_dict, _ = resin_scene_dict(vertices, faces, body_albedo=rgb, emission=radiance, **camera)
     converged, denoiser_name, object_pixels = _converge(scene_dict, design, fixed_spp)

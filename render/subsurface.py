@@ -19,14 +19,16 @@ light that enters the tile is computed on grids and spread by diffusion:
    they say it goes on: with the multipole its top came out 20-45 % darker than the path-traced
    medium, with the box 0-10 %.
 3. The tile is rendered as a black-bodied smooth resin (Mitsuba ``plastic``: its Fresnel
-   reflection, as before) that emits the exitance over pi as a Lambertian radiance, interpolated
-   from its vertices (:func:`subsurface_tile`). The camera then sees the subsurface light
-   without Monte Carlo noise.
+   reflection, as before) that emits the exitance, interpolated from its vertices, with the
+   Fresnel transmittance towards the camera (:func:`subsurface_tile`). The camera then sees
+   the subsurface light without Monte Carlo noise.
 
 Approximations: diffusion leaves out single scattering and is poor within about a transport
 mean free path of the entry point; the box is the tile's footprint at its mean thickness (the
-relief changes the light that enters, not the distances it travels); the exit is Lambertian
-(no Fresnel factor on the way out); the relief does not shadow itself. ``printapp bench
+relief changes the light that enters, not the distances it travels); the light inside is
+taken as isotropic at the surface (the exit's angular shape is the Fresnel transmittance's
+alone), baked for the preview's camera (its reflections in the surface see the same values);
+the relief does not shadow itself. ``printapp bench
 translucency`` measures the resulting error against the path-traced medium.
 """
 
@@ -61,6 +63,11 @@ class SceneLights:
     """(k, 3) linear-RGB radiance of each rectangle (towards its +z side)."""
     environment: np.ndarray
     """(3,) radiance of the constant environment."""
+
+
+def eye_of(scene_dict: dict[str, Any]) -> np.ndarray:
+    """The position of a scene dictionary's sensor (the origin of its ``to_world``)."""
+    return np.array(scene_dict["sensor"]["to_world"].matrix, dtype=np.float64)[:3, 3]
 
 
 def lights_of(scene_dict: dict[str, Any]) -> SceneLights:
@@ -192,8 +199,15 @@ def subsurface_tile(
     medium: MediumRGB,
     eta: float,
     lights: SceneLights,
+    eye_mm: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """A tile's mesh with the radiance its body sends out at each vertex (module doc).
+
+    With ``eye_mm`` (the camera's position) the radiance each vertex sends towards the camera
+    carries the Fresnel transmittance of the way out: the light inside is nearly isotropic,
+    so the radiance leaving at angle ``theta`` is proportional to ``1 - F(cos theta)``,
+    normalised to the exitance, ``L = M (1 - F(cos theta)) / (pi (1 - F_dr))`` (by reciprocity
+    ``F`` is the reflectance from outside at ``theta``); without it, Lambertian ``M / pi``.
 
     The top is the height field at ``base_thickness_mm + h`` on its grid, two triangles a
     cell; each wall and the bottom have vertices of their own (so that their radiance does
@@ -214,9 +228,8 @@ def subsurface_tile(
     cz, cy, cx = box_cells((thick, depth, width), min(medium.transport_mfp_mm))
     hz, hy, hx = thick / cz, depth / cy, width / cx
     top_pts = np.stack([xx, yy, z], axis=-1).reshape(-1, 3)
-    e_top = transmitted_irradiance(
-        top_pts, _top_normals(h, pitch_x_mm, pitch_y_mm).reshape(-1, 3), lights, eta
-    )
+    top_normals = _top_normals(h, pitch_x_mm, pitch_y_mm).reshape(-1, 3)
+    e_top = transmitted_irradiance(top_pts, top_normals, lights, eta)
     # the flux entering each top cell: each grid sample stands for pitch_x * pitch_y (less at the borders)
     weight = np.ones((ny, nx))
     weight[[0, -1], :] *= 0.5
@@ -272,6 +285,7 @@ def subsurface_tile(
     verts = [top_pts]
     faces = [np.concatenate([np.column_stack([v00, v10, v11]), np.column_stack([v00, v11, v01])])]
     top_exit = channels("top")
+    normals = [top_normals]
     radiance = [
         np.stack(
             [_interpolate(top_exit[..., c], (centres_y, centres_x), (yy, xx)) for c in range(3)], -1
@@ -304,13 +318,18 @@ def subsurface_tile(
         verts.append(pts)
         faces += quad
         radiance.append(values.reshape(-1, 3))
+        normals.append(np.tile(face_points[name][1], (pts.shape[0], 1)))
         count += pts.shape[0]
     lo_x, hi_x, lo_y, hi_y = x[0], x[-1], y[0], y[-1]
     verts.append(np.array([[lo_x, lo_y, 0.0], [hi_x, lo_y, 0.0], [hi_x, hi_y, 0.0], [lo_x, hi_y, 0.0]]))
     faces.append(np.array([[count, count + 2, count + 1], [count, count + 3, count + 2]]))
     radiance.append(np.tile(channels("bottom").mean(axis=(0, 1)), (4, 1)))
-    return (
-        np.concatenate(verts),
-        np.concatenate(faces).astype(np.int64),
-        np.concatenate(radiance) / math.pi,
-    )
+    normals.append(np.tile([0.0, 0.0, -1.0], (4, 1)))
+    vertices = np.concatenate(verts)
+    out = np.concatenate(radiance) / math.pi
+    if eye_mm is not None:
+        n = np.concatenate(normals)
+        view = np.asarray(eye_mm, dtype=np.float64)[None, :] - vertices
+        cos = np.clip(np.einsum("ij,ij->i", n, view) / np.linalg.norm(view, axis=1), 0.0, 1.0)
+        out *= ((1.0 - fresnel_dielectric(cos, eta)) / (1.0 - diffuse_fresnel_reflectance(eta)))[:, None]
+    return vertices, np.concatenate(faces).astype(np.int64), out

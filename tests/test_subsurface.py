@@ -120,6 +120,14 @@ def test_glowing_tile_gives_back_what_enters_and_glows_where_lit():
     x1 = radiance[np.isclose(v[:, 0], 6.0) & (v[:, 2] < 1.9) & (v[:, 2] > 0.1)]
     x0 = radiance[np.isclose(v[:, 0], 0.0) & (v[:, 2] < 1.9) & (v[:, 2] > 0.1)]
     assert x1.mean() > 1.5 * x0.mean()
+    # seen from straight above, the top's radiance carries the Fresnel transmittance at normal
+    # exit over its hemispherical mean (the exit's shape for isotropic light inside)
+    _, _, seen = subsurface_tile(
+        np.zeros((n, n)), pitch, pitch, 0.0, 0.0, 2.0, medium, 1.5, lights, np.array([3.0, 3.0, 1e6])
+    )
+    top = slice(0, n * n)
+    ratio = (1 - float(fresnel_dielectric(1.0, 1.5))) / (1 - diffuse_fresnel_reflectance(1.5))
+    np.testing.assert_allclose(seen[top], radiance[top] * ratio, rtol=1e-6)
 
 
 def test_box_cells_and_resolution():

@@ -51,7 +51,7 @@ def _renders() -> tuple[list[dict[str, Any]], float, float]:
     from printapp.design import design_from_dict
     from printapp.relief import build_relief
     from render.mitsuba_adapter import Framing, choose_variant, render_resin_mesh, resin_scene_dict
-    from render.subsurface import lights_of, resolves, subsurface_tile
+    from render.subsurface import eye_of, lights_of, resolves, subsurface_tile
     from render.translucency import MediumRGB
 
     choose_variant()
@@ -81,7 +81,7 @@ def _renders() -> tuple[list[dict[str, Any]], float, float]:
         **{k: v for k, v in common.items() if k != "body_albedo"},
         body_albedo=(1.0, 1.0, 1.0),
     )
-    lights = lights_of(scene)
+    lights, eye = lights_of(scene), eye_of(scene)
     patch = relief.patch
     rows = []
     for ratio in RATIOS:
@@ -115,6 +115,7 @@ def _renders() -> tuple[list[dict[str, Any]], float, float]:
                 medium,
                 eta,
                 lights,
+                eye,
             )
             return render_resin_mesh(
                 v, f, spp=16, seed=seed, emission=radiance, frame_vertices=vertices, **common

@@ -159,8 +159,8 @@ def box_cells(size_mm: tuple[float, float, float], transport_mfp_mm: float) -> t
 
 COARSEST_CELL_OVER_MFP = 1.75
 """The coarsest diffusion cell, in transport mean free paths, at which the BSSRDF is rendered:
-``printapp bench translucency`` measured 4.8 % error against the converged medium at 1.73
-(cells of 0.142 mm for 0.082 mm) and 6.2 % at 0.52; coarser was not measured."""
+``printapp bench translucency`` measured 5.0 % error against the converged medium at 1.73
+(cells of 0.142 mm for 0.082 mm) and 3.1 % at 0.52; coarser was not measured."""
 
 
 def resolves(size_mm: tuple[float, float, float], transport_mfp_mm: float) -> bool:

@@ -51,7 +51,10 @@ the body albedo's error climbs above it (docs/benchmarks.md, section "mie")."""
 
 BSSRDF_MAX_MFP_OVER_THICKNESS = 0.5
 """Transport mean free path over the part's thickness up to which the BSSRDF stands in for the
-medium (``printapp bench translucency``, docs/benchmarks.md)."""
+medium. ``printapp bench translucency`` (docs/benchmarks.md) renders a 3 mm relief tile both
+ways against a converged medium: the BSSRDF's error is 3-7 % up to 0.37, 9.5 % at 0.55 and
+18 % at 1 (where light crosses the part in a few steps and diffusion fails); 10 % falls at
+about 0.57, and this keeps a little below it."""
 
 _NODES, _WEIGHTS = np.polynomial.legendre.leggauss(48)
 _MU = 0.5 * (_NODES + 1.0)

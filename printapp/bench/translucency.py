@@ -179,11 +179,11 @@ def bench_translucency(repeats: int) -> StageResult:
         import matplotlib.pyplot as plt
 
         x = [r["mfp_over_footprint"] for r in rows]
-        fig, (ax, bx) = plt.subplots(1, 2, figsize=(10, 4), constrained_layout=True)
+        fig, (ax, bx) = plt.subplots(1, 2, figsize=(10, 4.6), constrained_layout=True)
         for key, label, style in (
             ("albedo_error", "body albedo (64 spp)", "o-"),
             ("bssrdf_error", "BSSRDF (16 spp)", "s-"),
-            ("medium_64spp_noise", "medium, 64 spp: its noise (its bias: 0)", "^-"),
+            ("medium_64spp_noise", "medium, 64 spp: its noise (its bias: 0-3 %)", "^-"),
             ("reference_noise", "reference's own noise", "k:"),
         ):
             ax.plot(x, [100 * r[key] for r in rows], style, label=label)
@@ -209,7 +209,7 @@ def bench_translucency(repeats: int) -> StageResult:
         bx.set_yscale("log")
         bx.set_xlabel("transport mean free path / pixel footprint")
         bx.set_ylabel("render time (s)")
-        bx.legend(fontsize=8)
+        bx.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=2)
         fig.savefig(path)
         plt.close(fig)
 

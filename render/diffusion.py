@@ -18,7 +18,7 @@ Jensen's dipole concentrates them at ``z = 1 / sigma_t'``); the integral over ea
 deposited there. Exitance through a boundary face is the diffusion flux
 ``phi_c / (h / (2 D) + 2 A)`` (half a cell of conduction in series with the boundary condition),
 so what goes in comes out, less what is absorbed, exactly. Solved by conjugate gradients
-(the matrix is symmetric positive definite) with a diagonal preconditioner.
+(the matrix is symmetric positive definite) with a diagonal preconditioner, matrix-free in numba.
 
 Tests compare a wide box with the slab's multipole (:func:`render.bssrdf.slab_totals`).
 """
@@ -29,8 +29,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.sparse as sp
-from scipy.sparse.linalg import cg
+from numba import njit
 
 from render.bssrdf import fresnel_diffuse_reflectance_fit
 
@@ -51,6 +50,59 @@ class BoxExitance:
     x0: np.ndarray
     x1: np.ndarray
     absorbed: float
+
+
+@njit(cache=True)
+def _apply(phi: np.ndarray, diag: np.ndarray, couple: np.ndarray, out: np.ndarray) -> None:
+    """``out = A phi`` for the 7-point stencil: ``diag`` on the diagonal, ``-couple[axis]`` to
+    each neighbour along ``axis`` (matrix-free; arrays shaped (nz, ny, nx))."""
+    nz, ny, nx = phi.shape
+    cz, cy, cx = couple[0], couple[1], couple[2]
+    for k in range(nz):
+        for j in range(ny):
+            for i in range(nx):
+                v = diag[k, j, i] * phi[k, j, i]
+                if k > 0:
+                    v -= cz * phi[k - 1, j, i]
+                if k < nz - 1:
+                    v -= cz * phi[k + 1, j, i]
+                if j > 0:
+                    v -= cy * phi[k, j - 1, i]
+                if j < ny - 1:
+                    v -= cy * phi[k, j + 1, i]
+                if i > 0:
+                    v -= cx * phi[k, j, i - 1]
+                if i < nx - 1:
+                    v -= cx * phi[k, j, i + 1]
+                out[k, j, i] = v
+
+
+@njit(cache=True)
+def _conjugate_gradients(
+    diag: np.ndarray, couple: np.ndarray, rhs: np.ndarray, tol: float, maxiter: int
+) -> tuple[np.ndarray, int]:
+    """Jacobi-preconditioned conjugate gradients on :func:`_apply`'s matrix, from zero, until
+    ``|r| <= tol |rhs|``; sums in a fixed order (the same result whatever the machine's threads).
+    Returns the solution and the iterations taken (``-1`` when ``maxiter`` ran out)."""
+    x = np.zeros_like(rhs)
+    r = rhs.copy()
+    z = r / diag
+    p = z.copy()
+    ap = np.empty_like(rhs)
+    rz = np.sum(r * z)
+    goal = tol * math.sqrt(np.sum(rhs * rhs))
+    for it in range(maxiter):
+        _apply(p, diag, couple, ap)
+        step = rz / np.sum(p * ap)
+        x += step * p
+        r -= step * ap
+        if math.sqrt(np.sum(r * r)) <= goal:
+            return x, it + 1
+        z = r / diag
+        rz_new = np.sum(r * z)
+        p = z + (rz_new / rz) * p
+        rz = rz_new
+    return x, -1
 
 
 def _depth_fractions(sigma_t: float, nz: int, h: float) -> np.ndarray:
@@ -110,16 +162,12 @@ def diffuse_box(
 
     n = nz * ny * nx
     idx = np.arange(n).reshape(nz, ny, nx)
-    diag = np.full(n, sigma_a * volume)
-    rows, cols, vals = [], [], []
-    for axis in range(3):
-        a = np.take(idx, range(0, idx.shape[axis] - 1), axis=axis).ravel()
-        b = np.take(idx, range(1, idx.shape[axis]), axis=axis).ravel()
-        rows += [a, b]
-        cols += [b, a]
-        vals.append(np.full(2 * a.size, -couple[axis]))
-        np.add.at(diag, a, couple[axis])
-        np.add.at(diag, b, couple[axis])
+    diag = np.full((nz, ny, nx), sigma_a * volume)
+    for axis, count in enumerate((nz, ny, nx)):
+        # each interior face couples the cells on its two sides
+        inner = np.full(count, 2.0 * couple[axis])
+        inner[[0, -1]] = couple[axis] if count > 1 else 0.0
+        diag += inner.reshape([-1 if a == axis else 1 for a in range(3)])
     faces = {
         "bottom": idx[0],
         "top": idx[-1],
@@ -129,11 +177,9 @@ def diffuse_box(
         "x1": idx[:, :, -1],
     }
     axis_of = {"bottom": 0, "top": 0, "y0": 1, "y1": 1, "x0": 2, "x1": 2}
+    flat_diag = diag.ravel()
     for name, cells in faces.items():
-        np.add.at(diag, cells.ravel(), leak[axis_of[name]])
-    all_r = np.concatenate([np.arange(n), *rows])
-    all_c = np.concatenate([np.arange(n), *cols])
-    matrix = sp.csr_matrix((np.concatenate([diag, *vals]), (all_r, all_c)), shape=(n, n))
+        np.add.at(flat_diag, cells.ravel(), leak[axis_of[name]])
 
     q = np.zeros((nz, ny, nx))
     depth = {"top": nz, "bottom": nz, "y0": ny, "y1": ny, "x0": nx, "x1": nx}
@@ -154,14 +200,14 @@ def diffuse_box(
             q += frac[None, None, :] * flux[:, :, None]
         else:  # x1
             q += frac[::-1][None, None, :] * flux[:, :, None]
-    rhs = q.ravel()
-    if not np.any(rhs):
+    if not np.any(q):
         zero = {k: np.zeros(v.shape) for k, v in faces.items()}
         return BoxExitance(**zero, absorbed=0.0)
-    precond = sp.diags(1.0 / diag)
-    phi, info = cg(matrix, rhs, rtol=tol, atol=0.0, M=precond, maxiter=20 * int(math.sqrt(n)) + 2000)
-    if info != 0:
-        raise RuntimeError(f"diffusion solve did not converge ({info} iterations)")
-    phi = np.clip(phi, 0.0, None)
+    solution, iterations = _conjugate_gradients(
+        diag, np.ascontiguousarray(couple, dtype=np.float64), q, float(tol), 20 * int(math.sqrt(n)) + 2000
+    )
+    if iterations < 0:
+        raise RuntimeError("diffusion solve did not converge")
+    phi = np.clip(solution.ravel(), 0.0, None)
     out = {k: phi[v] * (leak[axis_of[k]] / area[axis_of[k]]) for k, v in faces.items()}
     return BoxExitance(**out, absorbed=float(sigma_a * volume * phi.sum()))

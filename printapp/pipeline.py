@@ -203,7 +203,9 @@ def run_design(
     ``force``; everything else is written so that the user can see why.
     """
 
+    from printapp.highlight_check import check_highlight
     from printapp.rendering import (
+        highlight_frame,
         light_sweep,
         noise_record,
         noise_summary,
@@ -252,6 +254,7 @@ def run_design(
         choice = None
         preview = None
         sweep = None
+        frame = None
         if render:
             with timer.stage("render", "path-traced preview (Mitsuba 3)"):
                 choice = choose_variant()
@@ -264,6 +267,8 @@ def run_design(
                 sweep = light_sweep(
                     design, relief, mesh, predicted, brdf_field, medium=medium, **sweep_settings(design)
                 )
+            with timer.stage("highlight", "highlight frame (anisotropic tiles)"):
+                frame = highlight_frame(design, relief, mesh, predicted, brdf_field, medium=medium)
         with timer.stage("verify", "verification"):
             passed, failed = verify(
                 design,
@@ -277,6 +282,9 @@ def run_design(
             if winding is not None:
                 overlap = winding_verdict(winding)
                 (passed if overlap.ok else failed).append(overlap.message)
+            highlight = check_highlight(design, relief, mesh, predicted.metrics, frame)
+            if highlight.applied:
+                (passed if highlight.ok else failed).append(highlight.sentence)
         ok = not failed
         with timer.stage("write", "writing outputs"):
             if image is not None:
@@ -383,6 +391,7 @@ def run_design(
                 "noise": None if preview is None else noise_record(preview),
                 "mean_linear_rgb": [round(float(v), 6) for v in image.reshape(-1, 3).mean(axis=0)],
             },
+            "highlight_check": None if not render else highlight.record,
             "verification": {
                 "passed": ok,
                 "checks": passed,

@@ -410,6 +410,7 @@ def run_design(
                     appearance=predicted,
                     preview_png=out.path("preview.png").read_bytes() if image is not None else None,
                     sweep_png=None if sweep is None else png_bytes(to_srgb8(sweep)),
+                    highlight_png=None if frame is None else png_bytes(to_srgb8(frame)),
                 ),
             )
         manifest["stages_s"] = dict(timer.seconds)

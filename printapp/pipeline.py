@@ -31,7 +31,7 @@ from printapp.mesh import (
 )
 from printapp.outputs import OutputFolder
 from printapp.progress import StageTimer
-from printapp.relief import as_printed, build_relief, cure_model, fits_printer, slice_tile
+from printapp.relief import as_printed, build_relief, cure_model, cure_spread, fits_printer, slice_tile
 from render.microfacet import SlopeRoughness, slope_roughness
 from render.mitsuba_adapter import StudioLight
 from slicing import slice_mesh, write_sl1
@@ -242,7 +242,13 @@ def run_design(
                     )
             if isinstance(design.base, TileBase) and not design.combine:
                 with timer.stage("as_printed", "as-printed relief"):
-                    printed = as_printed(relief.patch, slices, design.base.thickness_mm, cure_model(design))
+                    printed = as_printed(
+                        relief.patch,
+                        slices,
+                        design.base.thickness_mm,
+                        cure_model(design),
+                        cure_spread(design)[0],
+                    )
         with timer.stage("appearance", "predicted appearance (slopes)"):
             # From what the printer will make where that is known, else from the design.
             sx, sy = (printed.field if printed is not None else relief.patch).slopes()
@@ -346,6 +352,8 @@ def run_design(
             else {
                 "model": cure_model(design).describe(),
                 "cure": describe_constants(cure_model(design)),
+                "cure_spread_um": round(cure_spread(design)[0] * 1000.0, 4),
+                "cure_spread_source": cure_spread(design)[1],
                 "exposure": "grey levels from the relief's heights"
                 if design.relief.grey_levels
                 else "binary pixels from the relief's heights"

@@ -210,5 +210,14 @@ def check_highlight(
     expected, mask = predicted_shape(design, relief, mesh, lobe, width, height)
     measured = highlight_shape(frame @ np.array([0.2126, 0.7152, 0.0722]), mask)
     ok, sentence, record = verdict(measured, expected, lobe)
-    record = {"applied": True, "why": why, "frame_px": [width, height], "spp": FRAME_SPP, **record}
+    light = mirror_light(design)
+    record = {
+        "applied": True,
+        "why": why,
+        "frame_px": [width, height],
+        "spp": FRAME_SPP,
+        "spot_azimuth_deg": round(math.degrees(light.highlight_azimuth_rad), 3),
+        "spot_elevation_deg": round(math.degrees(light.highlight_elevation_rad), 3),
+        **record,
+    }
     return HighlightCheck(True, ok, sentence, record, frame)

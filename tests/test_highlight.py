@@ -90,6 +90,21 @@ def test_a_round_lobe_is_stretched_by_the_view_alone():
     assert shape.elongation == pytest.approx(1.0 / math.sin(ELEVATION), rel=0.05)
 
 
+def test_the_verdict_asks_for_the_axis_and_a_share_of_the_stretch():
+    from printapp.highlight_check import verdict
+    from render.highlight import HighlightShape
+
+    lobe = SlopeLobe(0.09, 0.015, math.radians(120.0))
+    predicted = HighlightShape(90.0, 4.0, (10.0, 10.0), 100)
+    ok, sentence, record = verdict(HighlightShape(105.0, 2.1, (10.0, 10.0), 90), predicted, lobe)
+    assert ok and record["elongation_floor"] == pytest.approx(2.0)  # 1 + (4 - 1) / 3
+    assert "105.0 deg" in sentence and "90.0 deg" in sentence and "120.0 deg on the tile" in sentence
+    assert not verdict(HighlightShape(111.0, 3.0, (10.0, 10.0), 90), predicted, lobe)[0]  # 21 deg off
+    assert not verdict(HighlightShape(90.0, 1.9, (10.0, 10.0), 90), predicted, lobe)[0]  # too round
+    ok, sentence, _ = verdict(None, predicted, lobe)
+    assert not ok and "no highlight" in sentence
+
+
 def test_axis_difference():
     assert axis_difference_deg(5.0, 175.0) == pytest.approx(10.0)
     assert axis_difference_deg(0.0, 90.0) == pytest.approx(90.0)
@@ -131,6 +146,9 @@ def brushed():
     relief = build_relief(design)
     predicted = predict_for_design(design, relief.patch)
     frame = highlight_frame(design, relief, relief.mesh, predicted, relief.patch)
+    # Same design, same seeds: the same frame, bit for bit.
+    again = highlight_frame(design, relief, relief.mesh, predicted, relief.patch)
+    assert frame is not None and np.array_equal(frame, again)
     return design, relief, predicted, frame
 
 

@@ -202,7 +202,9 @@ def check_highlight(
     the check fail).
     """
     ok_to_apply, why = applies(design, metrics)
-    if not ok_to_apply or frame is None:
+    if ok_to_apply and frame is None:
+        ok_to_apply, why = False, "no frame was rendered (rendering is off)"
+    if not ok_to_apply:
         record = {"applied": False, "why": why}
         return HighlightCheck(False, True, f"highlight direction not checked: {why}", record)
     height, width = frame.shape[:2]

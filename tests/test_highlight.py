@@ -167,6 +167,8 @@ def test_a_brushed_tile_shows_its_streak_where_the_lobe_says(brushed):
     assert r["angle_difference_deg"] <= 20.0 and r["measured_elongation"] >= r["elongation_floor"] > 1.5
     assert f"{r['measured_angle_deg']:.1f} deg" in result.sentence
     assert f"{r['predicted_angle_deg']:.1f} deg" in result.sentence
+    unrendered = check_highlight(design, relief, relief.mesh, predicted.metrics, None)
+    assert not unrendered.applied and "rendering is off" in unrendered.sentence
 
 
 def test_the_check_fails_when_the_predicted_direction_is_turned(brushed):

@@ -27,10 +27,11 @@ For a tile, whose every column is solid from the bed up, the printed height of a
 the sum over layers of the thickness its dose cures.
 
 **Lateral cure spread.** A pixel's light does not stay in its square: the display's and
-the vat film's blur and the resin's scattering spread it, which Luongo et al. 2019 and
-Reid et al. 2024 ("Impact of beam shape on print accuracy in digital light processing
-additive manufacture", *3D Print. Addit. Manuf.* 11(2)) model as a Gaussian spot per
-pixel. With a spread ``sigma`` (:func:`spread_dose`), each layer's dose at a pixel's centre
+the vat film's blur and the resin's scattering spread it. Luongo et al. 2019 model it as a
+Gaussian spot per pixel, the standard model; Reid et al. 2024 ("Impact of beam shape on
+print accuracy in digital light processing additive manufacture", *3D Print. Addit. Manuf.*
+11(2)) find that a heavier-tailed Lorentzian predicts small features better. The Gaussian
+is used here. With a spread ``sigma`` (:func:`spread_dose`), each layer's dose at a pixel's centre
 is the sum of its lit neighbours' doses times the Gaussian's integral over them, and the
 cure model turns that dose (as a grey level ``255 E / E_full``) into a thickness. Without
 it, anti-aliased grey below the working curve's threshold cures nothing and every layer's

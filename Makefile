@@ -12,12 +12,13 @@ STAMP := $(VENV)/.printapp-installed
 demo: $(STAMP) llvm
 	$(BIN)/printapp demo
 
+# Spread over the cores (pytest-xdist): most tests are single-threaded numpy and numba.
 test: $(STAMP) llvm chromium
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n auto
 
 # The edit-test loop: everything but the end-to-end and heavy tests (marked slow).
 test-fast: $(STAMP) llvm
-	$(BIN)/python -m pytest -q -m "not slow"
+	$(BIN)/python -m pytest -q -n auto -m "not slow"
 
 lint: $(STAMP)
 	$(BIN)/ruff check .

@@ -191,6 +191,10 @@ class Printer(_Section):
 
     name: str = "prusa-sl1"
     layer_height_mm: Annotated[float, at.Gt(0.0), at.Le(1.0)] | None = None
+    cure_spread_mm: Annotated[float, at.Ge(0.0), at.Le(1.0)] | None = None
+    """Lateral cure spread: the standard deviation of the Gaussian spot a pixel's light makes in
+    the resin (``cure_spread_um = 20``). Unset, none: no printer's spot has been measured
+    (:func:`printapp.relief.cure_spread`; 20 um is the nominal one-pixel spot of the SL1)."""
 
     @field_validator("name")
     @classmethod

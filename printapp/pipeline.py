@@ -31,7 +31,7 @@ from printapp.mesh import (
 )
 from printapp.outputs import OutputFolder
 from printapp.progress import StageTimer
-from printapp.relief import as_printed, build_relief, cure_model, fits_printer, slice_tile
+from printapp.relief import as_printed, build_relief, cure_model, cure_spread, fits_printer, slice_tile
 from render.microfacet import SlopeRoughness, slope_roughness
 from render.mitsuba_adapter import StudioLight
 from slicing import slice_mesh, write_sl1
@@ -203,7 +203,9 @@ def run_design(
     ``force``; everything else is written so that the user can see why.
     """
 
+    from printapp.highlight_check import check_highlight
     from printapp.rendering import (
+        highlight_frame,
         light_sweep,
         noise_record,
         noise_summary,
@@ -240,7 +242,13 @@ def run_design(
                     )
             if isinstance(design.base, TileBase) and not design.combine:
                 with timer.stage("as_printed", "as-printed relief"):
-                    printed = as_printed(relief.patch, slices, design.base.thickness_mm, cure_model(design))
+                    printed = as_printed(
+                        relief.patch,
+                        slices,
+                        design.base.thickness_mm,
+                        cure_model(design),
+                        cure_spread(design)[0],
+                    )
         with timer.stage("appearance", "predicted appearance (slopes)"):
             # From what the printer will make where that is known, else from the design.
             sx, sy = (printed.field if printed is not None else relief.patch).slopes()
@@ -252,6 +260,7 @@ def run_design(
         choice = None
         preview = None
         sweep = None
+        frame = None
         if render:
             with timer.stage("render", "path-traced preview (Mitsuba 3)"):
                 choice = choose_variant()
@@ -273,6 +282,10 @@ def run_design(
                     translucency=kind,
                     **sweep_settings(design),
                 )
+            with timer.stage("highlight", "highlight frame (anisotropic tiles)"):
+                frame = highlight_frame(
+                    design, relief, mesh, predicted, brdf_field, medium=medium, translucency=kind
+                )
         with timer.stage("verify", "verification"):
             passed, failed = verify(
                 design,
@@ -286,6 +299,9 @@ def run_design(
             if winding is not None:
                 overlap = winding_verdict(winding)
                 (passed if overlap.ok else failed).append(overlap.message)
+            highlight = check_highlight(design, relief, mesh, predicted.metrics, frame)
+            if highlight.applied:
+                (passed if highlight.ok else failed).append(highlight.sentence)
         ok = not failed
         with timer.stage("write", "writing outputs"):
             if image is not None:
@@ -347,6 +363,8 @@ def run_design(
             else {
                 "model": cure_model(design).describe(),
                 "cure": describe_constants(cure_model(design)),
+                "cure_spread_um": round(cure_spread(design)[0] * 1000.0, 4),
+                "cure_spread_source": cure_spread(design)[1],
                 "exposure": "grey levels from the relief's heights"
                 if design.relief.grey_levels
                 else "binary pixels from the relief's heights"
@@ -392,6 +410,7 @@ def run_design(
                 "noise": None if preview is None else noise_record(preview),
                 "mean_linear_rgb": [round(float(v), 6) for v in image.reshape(-1, 3).mean(axis=0)],
             },
+            "highlight_check": None if not render else highlight.record,
             "verification": {
                 "passed": ok,
                 "checks": passed,
@@ -410,6 +429,7 @@ def run_design(
                     appearance=predicted,
                     preview_png=out.path("preview.png").read_bytes() if image is not None else None,
                     sweep_png=None if sweep is None else png_bytes(to_srgb8(sweep)),
+                    highlight_png=None if frame is None else png_bytes(to_srgb8(frame)),
                 ),
             )
         manifest["stages_s"] = dict(timer.seconds)

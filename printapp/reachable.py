@@ -106,7 +106,7 @@ def chart_png(rows: list[dict[str, Any]], title: str) -> bytes:
         xs, ys, cs = [haze[i] for i in idx], [g60[i] for i in idx], [aniso[i] for i in idx]
         sc = a.scatter(xs, ys, c=cs, cmap="viridis", norm=norm, marker=marker, s=18, alpha=0.85, label=label)
         b.scatter([g60[i] for i in idx], [aniso[i] for i in idx], marker=marker, s=18, alpha=0.6, label=label)
-    traced = [r for r in ok if "gloss_60" in r]
+    traced = [r for r in ok if r.get("gloss_60") is not None]
     xs, ys = [r["gloss_60"] - r["gloss_20"] for r in traced], [r["gloss_60"] for r in traced]
     a.scatter(xs, ys, facecolors="none", edgecolors="red", s=60, label="traced (same designs)")
     for r in traced:
@@ -116,7 +116,7 @@ def chart_png(rows: list[dict[str, Any]], title: str) -> bytes:
             color="red",
             lw=0.6,
         )
-    a.set_xlabel("G60 - G20 (GU; the haze index of ASTM D4039 above 70 GU at 60 degrees)")
+    a.set_xlabel("G60 - G20 (GU): ASTM D4039 haze where G60 > 70")
     a.set_ylabel("60-degree gloss (GU)")
     a.legend(fontsize=7, loc="lower right")
     fig.colorbar(sc, ax=a, label="anisotropy (slopes)")

@@ -145,18 +145,54 @@ def cure_model(design: Design) -> CureModel:
     return build_cure_model(m.cure, m.name, m.penetration_depth_mm, m.critical_dose_mj_cm2, m.dose_mj_cm2)
 
 
+FWHM_PER_SIGMA = 2.0 * math.sqrt(2.0 * math.log(2.0))
+"""Full width at half maximum of a Gaussian, in standard deviations (2.355)."""
+
+
+def nominal_cure_spread_mm(design: Design) -> float:
+    """The nominal lateral cure spread (mm): a spot whose full width at half maximum is one pixel.
+
+    ``pitch / 2.355``: the narrowest spot that draws a lit pixel no sharper than the pixel
+    itself; nominal, not measured (Reid et al. 2024 calibrate a printer's spot from a
+    single-layer print, which has not been done for these printers).
+    """
+    return design.printer.profile.pitch_mm / FWHM_PER_SIGMA
+
+
+def cure_spread(design: Design) -> tuple[float, str]:
+    """The design's lateral cure spread (mm, the Gaussian spot's standard deviation) and where it came from.
+
+    ``[printer] cure_spread_um`` where given, else none. Not the nominal spread
+    (:func:`nominal_cure_spread_mm`) by default: it is not measured, and it moves verdicts
+    (it smooths pixel-scale textures: ``docs/benchmarks.md``, brdf section).
+    """
+    given = design.printer.cure_spread_mm
+    if given is not None:
+        return given, f"{given * 1000:.4g} um ([printer] cure_spread_um)"
+    nominal = nominal_cure_spread_mm(design) * 1000.0
+    return 0.0, (
+        f"none (default: no measured spread for this printer; cure_spread_um = {nominal:.3g} is the "
+        "nominal one-pixel spot)"
+    )
+
+
 def as_printed(
-    design_field: HeightField, slices: Slices, base_thickness_mm: float, cure: CureModel | None = None
+    design_field: HeightField,
+    slices: Slices,
+    base_thickness_mm: float,
+    cure: CureModel | None = None,
+    spread_mm: float = 0.0,
 ) -> AsPrinted:
     """What the printer makes of a tile: printed heights at pixel centres, against the design.
 
-    ``cure`` is the cure model (:mod:`slicing.printed`; default: the linear one). The
-    comparison uses pixels at least one pixel inside the tile's edges (the walls' grey
+    ``cure`` is the cure model (:mod:`slicing.printed`; default: the linear one), and
+    ``spread_mm`` the lateral cure spread (:func:`slicing.printed.spread_dose`; 0: none).
+    The comparison uses pixels at least one pixel inside the tile's edges (the walls' grey
     pixels are not relief), the design interpolated bilinearly at the pixel centres.
     """
     from scipy.interpolate import RegularGridInterpolator
 
-    heights = printed_heights(slices, cure)
+    heights = printed_heights(slices, cure, spread_mm)
     x, y = pixel_centres_mm(slices)
     xd = x - slices.shift_mm[0] - design_field.origin_x_mm
     yd = y - slices.shift_mm[1] - design_field.origin_y_mm
@@ -196,7 +232,9 @@ def appearance_field(design: Design, relief: Relief | None = None) -> tuple[Heig
     relief = relief or build_relief(design)
     if isinstance(design.base, TileBase) and not design.combine:
         slices = slice_tile(design, relief.patch)
-        printed = as_printed(relief.patch, slices, design.base.thickness_mm, cure_model(design))
+        printed = as_printed(
+            relief.patch, slices, design.base.thickness_mm, cure_model(design), cure_spread(design)[0]
+        )
         return printed.field, "as-printed relief"
     return relief.patch, "designed relief"
 

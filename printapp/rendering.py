@@ -157,13 +157,18 @@ def render_preview(
     The preview is rendered in passes until its noise meets ``design.render.noise``
     (:func:`render.convergence.converge`); with ``fixed_spp`` it takes that many samples
     (in two halves, whose noise is still measured), as the light sweep's frames do.
-    ``mode_source`` says where a forced ``mode`` came from, for the reason shown. With
+    ``mode_source`` says where a forced ``mode`` came from, for the reason shown. Without
+    ``light``, an anisotropic tile's spot stands at the camera's mirror, where its highlight
+    shows the streak (:func:`printapp.highlight_check.preview_light`). With
     ``translucency = "bssrdf"`` a tile's ``medium`` is rendered as the light diffused through
     the tile instead (:func:`render.subsurface.subsurface_tile`).
     """
+    from printapp.highlight_check import preview_light
     from render.mitsuba_adapter import PREVIEW_FOV_DEG, Framing, choose_variant, resin_scene_dict
     from render.representation import Choice, choose_representation, compact_surface, table_surface
 
+    if light is None:
+        light = preview_light(design, predicted.metrics)
     variant = choose_variant()
     r = design.render
     frame = Framing.of(np.asarray(mesh.vertices), r.width_px, r.height_px, PREVIEW_FOV_DEG, r.distance_scale)
@@ -360,6 +365,49 @@ def light_sweep(
             ).image
         )
     return np.concatenate(strip, axis=1)
+
+
+def highlight_frame(
+    design: Design,
+    relief: Relief,
+    mesh: trimesh.Trimesh,
+    predicted: Appearance,
+    appearance_field: HeightField,
+    *,
+    medium: MediumRGB | None = None,
+    tables: dict[str, TableSurface] | None = None,
+    translucency: str = "medium",
+) -> np.ndarray | None:
+    """The verification frame of an anisotropic tile's highlight, lit by the mirror spot alone.
+
+    The preview's camera and representation, small (:func:`printapp.highlight_check.frame_size`,
+    :data:`printapp.highlight_check.FRAME_SPP` samples); None where the check does not apply
+    (:func:`printapp.highlight_check.applies`).
+    """
+    from printapp.highlight_check import FRAME_SPP, applies, frame_size, spot_only
+
+    if not applies(design, predicted.metrics)[0]:
+        return None
+    width, height = frame_size(design)
+    small = design.model_copy(
+        update={
+            "render": design.render.model_copy(
+                update={"width_px": width, "height_px": height, "spp": FRAME_SPP}
+            )
+        }
+    )
+    return render_preview(
+        small,
+        relief,
+        mesh,
+        predicted,
+        appearance_field,
+        medium=medium,
+        light=spot_only(design),
+        tables=tables,
+        fixed_spp=FRAME_SPP,
+        translucency=translucency,
+    ).image
 
 
 def parse_size(text: str) -> tuple[int, int]:

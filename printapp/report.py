@@ -287,6 +287,7 @@ def report_html(
     preview_png: bytes | None = None,
     sweep_png: bytes | None = None,
     sweep_frames: int = SWEEP_FRAMES,
+    highlight_png: bytes | None = None,
 ) -> str:
     """The report of one design run as a self-contained HTML page.
 
@@ -301,6 +302,9 @@ def report_html(
     preview_png, sweep_png : bytes, optional
         The preview and the light-sweep strip (``sweep_frames`` frames side by side) as
         PNG files; both are embedded as data URIs.
+    highlight_png : bytes, optional
+        The highlight check's spot-lit frame (:mod:`printapp.highlight_check`), shown under
+        the sweep where the check applied.
 
     Returns
     -------
@@ -401,6 +405,17 @@ def report_html(
         "the light turns; an isotropic one only brightens and dims.</p>"
     )
     add(_image(sweep_png, f"light sweep of {name}", "Not rendered in this run.", pixels=True))
+    hc = m.get("highlight_check") or {}
+    if highlight_png is not None and hc.get("applied"):
+        add(
+            '<p class="explain">The highlight check\'s frame: the same view lit by the small spot alone, '
+            "at the camera's mirror image. Its long axis lies at "
+            f"{hc['measured_angle_deg']:.1f}° on the screen (counter-clockwise from the right), "
+            f"{hc['predicted_angle_deg']:.1f}° predicted from the BRDF lobe; it is "
+            f"{hc['measured_elongation']:.2f} times longer than wide ({hc['predicted_elongation']:.2f} "
+            "predicted).</p>"
+        )
+        add(_image(highlight_png, f"highlight check frame of {name}", "", pixels=True))
 
     # BRDF.
     b = m.get("brdf") or {}

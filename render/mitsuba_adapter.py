@@ -242,6 +242,7 @@ def mesh_object(
     emission: np.ndarray | None = None,
     emission_weight: float = 1.0,
     normals: np.ndarray | None = None,
+    texcoords: np.ndarray | None = None,
 ) -> Any:
     """A Mitsuba triangle mesh from arrays, without writing a file.
 
@@ -261,6 +262,10 @@ def mesh_object(
         Per-vertex linear-RGB radiance: the mesh is then also an area emitter (Lambertian,
         interpolated over each triangle), picked by next-event estimation with relative
         weight ``emission_weight``.
+    texcoords : ndarray, shape (n, 2), optional
+        Per-vertex UV coordinates. They set the shading frame's tangent (``dp/du``), the
+        azimuth 0 of an anisotropic BSDF; without them Mitsuba takes each triangle's first
+        edge, which differs from triangle to triangle.
 
     Returns
     -------
@@ -287,13 +292,15 @@ def mesh_object(
         face_count=int(faces.shape[0]),
         props=props,
         has_vertex_normals=normals is not None,
-        has_vertex_texcoords=False,
+        has_vertex_texcoords=texcoords is not None,
     )
     params = mi.traverse(mesh)
     params["vertex_positions"] = np.ascontiguousarray(vertices, dtype=np.float32).ravel()
     if normals is not None:
         params["vertex_normals"] = np.ascontiguousarray(normals, dtype=np.float32).ravel()
     params["faces"] = np.ascontiguousarray(faces, dtype=np.uint32).ravel()
+    if texcoords is not None:
+        params["vertex_texcoords"] = np.ascontiguousarray(texcoords, dtype=np.float32).ravel()
     params.update()
     if emission is not None:
         values = np.ascontiguousarray(np.clip(emission, 0.0, None), dtype=np.float32)
@@ -301,6 +308,44 @@ def mesh_object(
             raise ValueError(f"emission: expected shape ({vertices.shape[0]}, 3), got {values.shape}")
         mesh.add_attribute("vertex_emission", 3, values.ravel())
     return mesh
+
+
+@dataclass(frozen=True)
+class StudioPlaces:
+    """Where the camera, the soft box and the spot stand (mm), and the spot's half side."""
+
+    eye: list[float]
+    lamp: list[float]
+    spot: list[float]
+    lamp_distance_mm: float
+    spot_half_size_mm: float
+
+
+def studio_places(
+    frame: Framing, elevation_rad: float, azimuth_rad: float, light: StudioLight, distance_scale: float
+) -> StudioPlaces:
+    """The camera at ``frame``'s distance and the lights of ``light`` round ``frame.centre``.
+
+    The lamps back off with the camera and grow with its distance: they light the object
+    from the same solid angle, and they stay out of the frame.
+    """
+    centre, radius, distance = frame.centre, frame.radius_mm, frame.distance_mm
+
+    def on_sphere(az: float, el: float, r: float) -> list[float]:
+        return [
+            float(centre[0] + r * math.cos(el) * math.cos(az)),
+            float(centre[1] + r * math.cos(el) * math.sin(az)),
+            float(centre[2] + r * math.sin(el)),
+        ]
+
+    lamp_distance = (2.0 * radius + distance / distance_scale / 2.0) * distance_scale
+    return StudioPlaces(
+        eye=on_sphere(azimuth_rad, elevation_rad, distance),
+        lamp=on_sphere(light.azimuth_rad, light.elevation_rad, lamp_distance),
+        spot=on_sphere(light.highlight_azimuth_rad, light.highlight_elevation_rad, lamp_distance),
+        lamp_distance_mm=lamp_distance,
+        spot_half_size_mm=light.highlight_size_factor * radius * distance_scale,
+    )
 
 
 def resin_scene_dict(
@@ -332,20 +377,9 @@ def resin_scene_dict(
     light = light or StudioLight()
     framed = vertices_mm if frame_vertices is None else frame_vertices
     frame = Framing.of(framed, width_px, height_px, fov_deg, distance_scale)
-    centre, radius, distance = frame.centre, frame.radius_mm, frame.distance_mm
-
-    def on_sphere(az: float, el: float, r: float) -> list[float]:
-        return [
-            float(centre[0] + r * math.cos(el) * math.cos(az)),
-            float(centre[1] + r * math.cos(el) * math.sin(az)),
-            float(centre[2] + r * math.sin(el)),
-        ]
-
-    eye = on_sphere(azimuth_rad, elevation_rad, distance)
-    # The lamp backs off with the camera and grows with its distance: it lights the object
-    # from the same solid angle, and it stays out of the frame.
-    lamp_distance = (2.0 * radius + distance / distance_scale / 2.0) * distance_scale
-    lamp = on_sphere(light.azimuth_rad, light.elevation_rad, lamp_distance)
+    centre, radius = frame.centre, frame.radius_mm
+    places = studio_places(frame, elevation_rad, azimuth_rad, light, distance_scale)
+    eye, lamp, lamp_distance = places.eye, places.lamp, places.lamp_distance_mm
     T = mi.ScalarTransform4f
     box_size = light.size_factor * radius * distance_scale
     weights = _irradiance_weights(light, radius, distance_scale, lamp_distance)
@@ -373,6 +407,9 @@ def resin_scene_dict(
         interior,
         emission=emission,
         emission_weight=weights.get("relief", 0.0),
+        # A BRDF representation's azimuths are the relief's x and y (the gonioreflectometer's):
+        # UV = (x, y) makes every triangle's tangent the world's x where it faces up.
+        texcoords=None if surface is None else np.asarray(vertices_mm)[:, :2],
     )
     scene_dict: dict[str, Any] = {
         "type": "scene",
@@ -412,8 +449,7 @@ def resin_scene_dict(
             },
         }
     if light.highlight_radiance > 0.0:
-        spot = on_sphere(light.highlight_azimuth_rad, light.highlight_elevation_rad, lamp_distance)
-        spot_size = light.highlight_size_factor * radius * distance_scale
+        spot, spot_size = places.spot, places.spot_half_size_mm
         scene_dict["spot"] = {
             "type": "rectangle",
             "to_world": T().look_at(origin=spot, target=[float(c) for c in centre], up=[0.0, 0.0, 1.0])

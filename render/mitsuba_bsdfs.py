@@ -12,6 +12,8 @@ from typing import Any
 
 import numpy as np
 
+from render.mitsuba_frames import in_world_x_frame
+
 _registered: dict[str, Any] = {}
 
 
@@ -335,7 +337,8 @@ def _register_plugins() -> None:
             return dr.select(ok, mi.warp.square_to_cosine_hemisphere_pdf(wo), 0.0)
 
         def eval_pdf(self, ctx, si, wo, active=True):
-            return self.eval(ctx, si, wo, active), self.pdf(ctx, si, wo, active)
+            # Named, not dispatched: a subclass (render.mitsuba_frames) has already rotated si and wo.
+            return TabulatedBRDF.eval(self, ctx, si, wo, active), TabulatedBRDF.pdf(self, ctx, si, wo, active)
 
         def sample(self, ctx, si, sample1, sample2, active=True):
             wo = mi.warp.square_to_cosine_hemisphere(sample2)
@@ -353,6 +356,7 @@ def _register_plugins() -> None:
         def to_string(self):
             return f"TabulatedBRDF[{self.n_ti} x {self.n_pi} incident, {self.n_to} x {self.n_po} outgoing]"
 
-    mi.register_bsdf("printapp_compact", lambda props: CompactResin(props))
-    mi.register_bsdf("printapp_table", lambda props: TabulatedBRDF(props))
-    _registered[variant] = TabulatedBRDF
+    compact, table = in_world_x_frame(CompactResin), in_world_x_frame(TabulatedBRDF)
+    mi.register_bsdf("printapp_compact", lambda props: compact(props))
+    mi.register_bsdf("printapp_table", lambda props: table(props))
+    _registered[variant] = table

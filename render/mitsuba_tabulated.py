@@ -24,6 +24,8 @@ from typing import Any
 
 import numpy as np
 
+from render.mitsuba_frames import in_world_x_frame
+
 _models: dict[str, TabulatedSurface] = {}
 _registered: set[str] = set()
 
@@ -245,5 +247,6 @@ def register_plugin() -> None:
         def to_string(self):
             return f"TabulatedResin[spike = {self.spike_weight}, extent = {self.extent}]"
 
-    mi.register_bsdf("printapp_tabulated", lambda props: TabulatedResin(props))
+    resin = in_world_x_frame(TabulatedResin)
+    mi.register_bsdf("printapp_tabulated", lambda props: resin(props))
     _registered.add(variant)

@@ -58,3 +58,28 @@ def test_signed_zero_is_one_vertex_and_nan_is_refused():
         read_binary_stl(b"\0" * 80 + (1).to_bytes(4, "little") + record.tobytes(), "z")
     with pytest.raises(DesignError, match="not a binary STL"):
         read_binary_stl(data[:-1], "z")
+
+
+def test_edge_counts_match_a_dictionary_of_directed_edges():
+    # The sort-and-search count against the plain definition: per directed edge, how many
+    # faces use it, and whether its reverse is used at all.
+    from collections import Counter
+
+    import trimesh
+
+    def by_dictionary(faces):
+        edges = Counter((int(f[i]), int(f[(i + 1) % 3])) for f in faces for i in range(3))
+        open_edges = sum(n for (a, b), n in edges.items() if (b, a) not in edges)
+        return open_edges, sum(1 for n in edges.values() if n > 1)
+
+    sphere = np.asarray(trimesh.creation.icosphere(subdivisions=3).faces)
+    rng = np.random.default_rng(7)
+    cases = [
+        sphere,
+        sphere[:-3],  # a hole
+        np.vstack([sphere[:10, ::-1], sphere[10:]]),  # flipped faces
+        np.vstack([sphere, sphere[:3], sphere[:3]]),  # edges used three times
+        rng.integers(0, 40, (200, 3)),  # soup
+    ]
+    for faces in cases:
+        assert closed_and_oriented(faces) == by_dictionary(faces)

@@ -111,7 +111,7 @@ def test_model_fits_a_brushed_relief_within_twice_the_tables_noise():
     # The brushed example's relief as designed (sparse convolution noise stretched 8x along 30
     # degrees), a patch that does not tile: the model takes the facets of the window the tracer
     # lights.
-    from printapp.design import load_design
+    from printapp.design_io import load_design
     from printapp.relief import build_relief
 
     patch = build_relief(load_design("examples/brushed_tile.toml")).patch

@@ -1,0 +1,69 @@
+"""A shading frame that does not depend on how the surface is triangulated, for printapp's BSDF plugins.
+
+Mitsuba builds a triangle's shading frame from its first edge when the mesh carries no
+texture coordinates, so an anisotropic (or azimuth-dependent, tabulated) BRDF turns from
+one triangle to the next: the two triangles of a flat tile top rendered with its traced
+table showed as two differently lit halves, split along the diagonal. printapp's BRDFs are
+measured in the tile's frame (azimuth 0 along +x), so each plugin evaluates and samples
+in the frame whose tangent is the world's +x projected into the tangent plane (+y where
+the normal is within 26 degrees of x, on faces whose azimuth the tables do not describe).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+
+def in_world_x_frame(base: Any) -> Any:
+    """A subclass of the Mitsuba BSDF class ``base`` that evaluates and samples it in the world-x frame.
+
+    ``base`` works on directions in its own local frame (``si.wi``, ``wo``); the subclass
+    rotates them about the normal from Mitsuba's shading frame into the world-x frame before
+    calling it, and the sampled direction back. Values and densities do not change under a
+    rotation, so nothing else does. ``base``'s methods must not call each other through
+    ``self`` (that would rotate twice).
+    """
+    import drjit as dr
+    import mitsuba as mi
+
+    def rotation(si: Any) -> tuple[Any, Any]:
+        n = si.sh_frame.n
+        ref = dr.select(dr.abs(n.x) < 0.9, mi.Vector3f(1.0, 0.0, 0.0), mi.Vector3f(0.0, 1.0, 0.0))
+        local = si.sh_frame.to_local(ref)
+        norm = dr.safe_sqrt(local.x * local.x + local.y * local.y)
+        ok = norm > 1e-6
+        return dr.select(ok, local.x / norm, 1.0), dr.select(ok, local.y / norm, 0.0)
+
+    def to_fixed(v: Any, c: Any, s: Any) -> Any:
+        return mi.Vector3f(c * v.x + s * v.y, c * v.y - s * v.x, v.z)
+
+    def from_fixed(v: Any, c: Any, s: Any) -> Any:
+        return mi.Vector3f(c * v.x - s * v.y, s * v.x + c * v.y, v.z)
+
+    def rotated(si: Any) -> tuple[Any, Any, Any]:
+        c, s = rotation(si)
+        si_fixed = mi.SurfaceInteraction3f(si)
+        si_fixed.wi = to_fixed(si.wi, c, s)
+        return si_fixed, c, s
+
+    class WorldXFrame(base):
+        def eval(self, ctx, si, wo, active=True):
+            si_fixed, c, s = rotated(si)
+            return super().eval(ctx, si_fixed, to_fixed(wo, c, s), active)
+
+        def pdf(self, ctx, si, wo, active=True):
+            si_fixed, c, s = rotated(si)
+            return super().pdf(ctx, si_fixed, to_fixed(wo, c, s), active)
+
+        def eval_pdf(self, ctx, si, wo, active=True):
+            si_fixed, c, s = rotated(si)
+            return super().eval_pdf(ctx, si_fixed, to_fixed(wo, c, s), active)
+
+        def sample(self, ctx, si, sample1, sample2, active=True):
+            si_fixed, c, s = rotated(si)
+            bs, weight = super().sample(ctx, si_fixed, sample1, sample2, active)
+            bs.wo = from_fixed(bs.wo, c, s)
+            return bs, weight
+
+    WorldXFrame.__name__ = base.__name__
+    return WorldXFrame

@@ -227,9 +227,10 @@ class Material(_Section):
     Or, with ``name``, a material of the catalogue (``printapp material``) whose index, body
     albedo and translucency are computed from its particles (Lorenz–Mie), with ``parameters``
     such as ``tio2_volume_fraction``; ``refractive_index`` and ``body_albedo`` are then derived
-    and may not be given. ``translucency`` picks the rendering: ``"auto"`` renders a
-    homogeneous medium only where light wanders farther than the pixels can show
-    (render.translucency), ``"medium"`` and ``"albedo"`` force one.
+    and may not be given. ``translucency`` picks the rendering: ``"auto"`` renders the light
+    under the surface only where it wanders farther than the pixels can show, as a BSSRDF
+    (tiles) or a homogeneous medium (render.translucency); ``"bssrdf"``, ``"medium"`` and
+    ``"albedo"`` force one.
     """
 
     refractive_index: Annotated[float, at.Ge(1.0), at.Le(3.0)] = 1.5
@@ -237,7 +238,7 @@ class Material(_Section):
     """Linear-RGB albedo of light that enters the resin and comes back out diffusely."""
     name: str | None = Field(default=None, min_length=1, max_length=200)
     parameters: dict[str, float] = Field(default_factory=dict)
-    translucency: Literal["auto", "medium", "albedo"] = "auto"
+    translucency: Literal["auto", "bssrdf", "medium", "albedo"] = "auto"
     cure: Literal["working-curve", "linear"] = "working-curve"
     """How thick a grey pixel cures (:mod:`slicing.printed`): Jacobs' working curve with the resin's
     constants, or a share of the layer linear in the grey level (printapp's first model)."""

@@ -264,17 +264,28 @@ def run_design(
         if render:
             with timer.stage("render", "path-traced preview (Mitsuba 3)"):
                 choice = choose_variant()
-                medium = None
+                medium, kind = None, "albedo"
                 if named_material is not None:
-                    medium, _ = render_choice(design, named_material, np.asarray(mesh.vertices))
-                preview = render_preview(design, relief, mesh, predicted, brdf_field, medium=medium)
+                    medium, _, kind = render_choice(design, named_material, np.asarray(mesh.vertices))
+                preview = render_preview(
+                    design, relief, mesh, predicted, brdf_field, medium=medium, translucency=kind
+                )
                 image = preview.image
             with timer.stage("sweep", "light sweep for the report"):
                 sweep = light_sweep(
-                    design, relief, mesh, predicted, brdf_field, medium=medium, **sweep_settings(design)
+                    design,
+                    relief,
+                    mesh,
+                    predicted,
+                    brdf_field,
+                    medium=medium,
+                    translucency=kind,
+                    **sweep_settings(design),
                 )
             with timer.stage("highlight", "highlight frame (anisotropic tiles)"):
-                frame = highlight_frame(design, relief, mesh, predicted, brdf_field, medium=medium)
+                frame = highlight_frame(
+                    design, relief, mesh, predicted, brdf_field, medium=medium, translucency=kind
+                )
         with timer.stage("verify", "verification"):
             passed, failed = verify(
                 design,

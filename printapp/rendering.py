@@ -143,6 +143,7 @@ def render_preview(
     tables: dict[str, TableSurface] | None = None,
     fixed_spp: int | None = None,
     mode_source: str = "in the design",
+    translucency: str = "medium",
 ) -> Preview:
     """Path-trace the design with the representation its camera needs (``design.render.mode``).
 
@@ -158,7 +159,9 @@ def render_preview(
     (in two halves, whose noise is still measured), as the light sweep's frames do.
     ``mode_source`` says where a forced ``mode`` came from, for the reason shown. Without
     ``light``, an anisotropic tile's spot stands at the camera's mirror, where its highlight
-    shows the streak (:func:`printapp.highlight_check.preview_light`).
+    shows the streak (:func:`printapp.highlight_check.preview_light`). With
+    ``translucency = "bssrdf"`` a tile's ``medium`` is rendered as the light diffused through
+    the tile instead (:func:`render.subsurface.subsurface_tile`).
     """
     from printapp.highlight_check import preview_light
     from render.mitsuba_adapter import PREVIEW_FOV_DEG, Framing, choose_variant, resin_scene_dict
@@ -172,7 +175,14 @@ def render_preview(
     feature = design.texture.feature_size_mm
     pixels = feature / frame.pixel_footprint_mm
     base = base_shape(design, relief)
-    if medium is not None:
+    if medium is not None and translucency == "bssrdf":
+        choice = Choice(
+            "geometry",
+            "a translucent resin is rendered as the real tile, glowing with the light diffused through it "
+            "(BSSRDF)",
+            pixels,
+        )
+    elif medium is not None:
         choice = Choice(
             "geometry", "a translucent resin is rendered as the real object with its medium", pixels
         )
@@ -209,22 +219,44 @@ def render_preview(
         target = base
         if tables is not None:
             tables["table"] = surface
+    camera = {
+        "refractive_index": design.material.refractive_index,
+        "width_px": r.width_px,
+        "height_px": r.height_px,
+        "elevation_rad": r.elevation_rad,
+        "azimuth_rad": r.azimuth_rad,
+        "fov_deg": PREVIEW_FOV_DEG,
+        "light": light,
+        "distance_scale": r.distance_scale,
+        "frame_vertices": np.asarray(mesh.vertices),
+    }
     scene_dict, _ = resin_scene_dict(
         np.asarray(target.vertices),
         np.asarray(target.faces),
         body_albedo=rgb,
-        refractive_index=design.material.refractive_index,
-        width_px=r.width_px,
-        height_px=r.height_px,
-        elevation_rad=r.elevation_rad,
-        azimuth_rad=r.azimuth_rad,
-        fov_deg=PREVIEW_FOV_DEG,
-        light=light,
-        medium=medium,
+        medium=None if translucency == "bssrdf" else medium,
         surface=surface,
-        distance_scale=r.distance_scale,
-        frame_vertices=np.asarray(mesh.vertices),
+        **camera,
     )
+    if medium is not None and translucency == "bssrdf":
+        from render.subsurface import eye_of, lights_of, subsurface_tile
+
+        if not isinstance(design.base, TileBase):
+            raise ValueError("the BSSRDF is rendered for tiles only")
+        p = relief.patch
+        vertices, faces, radiance = subsurface_tile(
+            p.heights_mm,
+            p.pitch_x_mm,
+            p.pitch_y_mm,
+            p.origin_x_mm,
+            p.origin_y_mm,
+            design.base.thickness_mm,
+            medium,
+            design.material.refractive_index,
+            lights_of(scene_dict),
+            eye_of(scene_dict),
+        )
+        scene_dict, _ = resin_scene_dict(vertices, faces, body_albedo=rgb, emission=radiance, **camera)
     converged, denoiser_name, object_pixels = _converge(scene_dict, design, fixed_spp)
     return Preview(
         converged.image,
@@ -298,6 +330,7 @@ def light_sweep(
     height_px: int = 120,
     spp: int = 8,
     medium: MediumRGB | None = None,
+    translucency: str = "medium",
 ) -> np.ndarray:
     """The light circling the object in ``frames`` steps, side by side: an anisotropic highlight moves.
 
@@ -328,6 +361,7 @@ def light_sweep(
                 light=light,
                 tables=tables,
                 fixed_spp=spp,
+                translucency=translucency,
             ).image
         )
     return np.concatenate(strip, axis=1)
@@ -342,6 +376,7 @@ def highlight_frame(
     *,
     medium: MediumRGB | None = None,
     tables: dict[str, TableSurface] | None = None,
+    translucency: str = "medium",
 ) -> np.ndarray | None:
     """The verification frame of an anisotropic tile's highlight, lit by the mirror spot alone.
 
@@ -371,6 +406,7 @@ def highlight_frame(
         light=spot_only(design),
         tables=tables,
         fixed_spp=FRAME_SPP,
+        translucency=translucency,
     ).image
 
 
@@ -436,12 +472,14 @@ def render_design_file(
     design, named = derive_design_material(design)
     relief = build_relief(design)
     mesh = combine_solids(relief.mesh, design.combine) if design.combine else relief.mesh
-    medium = render_choice(design, named, np.asarray(mesh.vertices))[0] if named is not None else None
+    medium, _, kind = render_choice(design, named, np.asarray(mesh.vertices))
     field, _ = appearance_field(design, relief)
     predicted = predict_for_design(design, field)
-    preview = render_preview(design, relief, mesh, predicted, field, medium=medium, mode_source=source)
+    preview = render_preview(
+        design, relief, mesh, predicted, field, medium=medium, mode_source=source, translucency=kind
+    )
     outputs = [(out, png_bytes(to_srgb8(preview.image)))]
     if sweep is not None:
-        strip = light_sweep(design, relief, mesh, predicted, field, medium=medium)
+        strip = light_sweep(design, relief, mesh, predicted, field, medium=medium, translucency=kind)
         outputs.append((sweep, png_bytes(to_srgb8(strip))))
     return design, preview, atomic_write_files(outputs)

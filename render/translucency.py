@@ -1,6 +1,6 @@
-"""From scattering properties to what a renderer needs: a body albedo, or a medium, and which.
+"""From scattering properties to what a renderer needs: a body albedo, a BSSRDF or a medium, and which.
 
-Two representations of a scattering material behind a smooth dielectric surface:
+Three representations of a scattering material behind a smooth dielectric surface:
 
 * the *body albedo* (cheap): the resin is Mitsuba's ``plastic``, a Lambertian body under the
   interface, whose internal reflections ``plastic`` accounts for itself. The body's albedo is
@@ -14,14 +14,21 @@ Two representations of a scattering material behind a smooth dielectric surface:
   ``1/H(mu) = sqrt(1 - a') + a'/2 int_0^1 mu' H(mu') / (mu + mu') dmu'``, iterated on 48
   Gauss–Legendre nodes. It is exact for isotropic scattering (tests compare it with a Monte
   Carlo random walk); the similarity relation and the Lambertian exit are the approximations.
+* the *BSSRDF* (tiles only): the light entering the tile diffuses through its box and comes
+  back out as a glow (:mod:`render.subsurface`, :mod:`render.diffusion`); rendered without
+  Monte Carlo noise, but the diffusion approximation needs light to scatter many times before
+  it leaves;
 * the *medium* (costly): a homogeneous medium with sigma_s, sigma_a and a Henyey–Greenstein
   phase function with the ensemble's g, inside a smooth dielectric boundary (the relief in the
   mesh is the rough surface).
 
-"Model no more than a scene needs" (DESIGN.md): the medium changes what is seen only when
-light wanders, before its direction is randomised, farther than a pixel sees: when the
-transport mean free path ``1 / (sigma_a + sigma_s')`` exceeds ``MEDIUM_THRESHOLD`` times the
-pixel footprint on the object. The threshold is the one ``printapp bench mie`` measures.
+"Model no more than a scene needs" (DESIGN.md): light wandering under the surface changes
+what is seen only when it goes, before its direction is randomised, farther than a pixel sees:
+when the transport mean free path ``ell* = 1 / (sigma_a + sigma_s')`` exceeds
+``MEDIUM_THRESHOLD`` times the pixel footprint on the object (``printapp bench mie``). Then
+the BSSRDF, while ``ell*`` is at most ``BSSRDF_MAX_MFP_OVER_THICKNESS`` times the part's
+thickness, and the medium beyond, where light crosses the part in a few steps and
+diffusion no longer holds (``printapp bench translucency``).
 """
 
 from __future__ import annotations
@@ -35,12 +42,19 @@ import numpy as np
 from render.colour import cie1931_cmf, spectrum_to_rgb
 
 MEDIUM_THRESHOLD = 1.0
-"""Transport mean free path over pixel footprint above which the medium is rendered.
+"""Transport mean free path over pixel footprint above which the light under the surface is rendered.
 
 ``printapp bench mie`` renders a relief tile both ways for transport mean free paths from
 0.1 to 30 pixel footprints: below one footprint the two images differ by a constant floor
 (about 3.5 8-bit levels, the models' difference for an opaque resin); from one footprint on
 the body albedo's error climbs above it (docs/benchmarks.md, section "mie")."""
+
+BSSRDF_MAX_MFP_OVER_THICKNESS = 0.5
+"""Transport mean free path over the part's thickness up to which the BSSRDF stands in for the
+medium. ``printapp bench translucency`` (docs/benchmarks.md) renders a 3 mm relief tile both
+ways against a converged medium: the BSSRDF's error is 3-7 % up to 0.37, 9.5 % at 0.55 and
+18 % at 1 (where light crosses the part in a few steps and diffusion fails); 10 % falls at
+about 0.57, and this keeps a little below it."""
 
 _NODES, _WEIGHTS = np.polynomial.legendre.leggauss(48)
 _MU = 0.5 * (_NODES + 1.0)
@@ -186,10 +200,22 @@ def choose_translucency(
     transport_mfp_mm: tuple[float, ...] | np.ndarray,
     footprint_mm: float,
     threshold: float = MEDIUM_THRESHOLD,
-) -> Literal["medium", "albedo"]:
-    """``"medium"`` when the largest transport mean free path exceeds ``threshold`` pixel
-    footprints (light visibly wanders under the surface), else ``"albedo"``."""
+    thickness_mm: float | None = None,
+    bssrdf_limit: float = BSSRDF_MAX_MFP_OVER_THICKNESS,
+) -> Literal["medium", "bssrdf", "albedo"]:
+    """The representation the view needs, by the largest transport mean free path ``ell*``.
+
+    ``"albedo"`` while ``ell*`` is at most ``threshold`` pixel footprints (the light's wandering
+    is not seen); else ``"bssrdf"`` when a ``thickness_mm`` is given (a tile: the BSSRDF is
+    rendered for tiles only) and ``ell*`` is at most ``bssrdf_limit`` times it; else ``"medium"``.
+    """
     if not (footprint_mm > 0 and math.isfinite(footprint_mm)):
         raise ValueError(f"footprint_mm: expected a positive length, got {footprint_mm!r}")
+    if thickness_mm is not None and not (thickness_mm > 0 and math.isfinite(thickness_mm)):
+        raise ValueError(f"thickness_mm: expected a positive length, got {thickness_mm!r}")
     longest = float(np.max(np.asarray(transport_mfp_mm, dtype=np.float64)))
-    return "medium" if longest > threshold * footprint_mm else "albedo"
+    if longest <= threshold * footprint_mm:
+        return "albedo"
+    if thickness_mm is not None and longest <= bssrdf_limit * thickness_mm:
+        return "bssrdf"
+    return "medium"

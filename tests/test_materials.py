@@ -25,6 +25,7 @@ from render import indices, mie
 from render.colour import cie1931_cmf, rgb_weights, spectrum_to_rgb
 from render.particles import Bimodal, Component, LogNormal, PowerLaw, bulk_optics, milk_recipe, radius_grid
 from render.translucency import (
+    BSSRDF_MAX_MFP_OVER_THICKNESS,
     MEDIUM_THRESHOLD,
     MediumRGB,
     appearance_from_spectra,
@@ -354,6 +355,16 @@ def test_translucency_choice():
     assert choose_translucency((0.1, 0.2, 0.3), 1.0, threshold=0.5) == "albedo"
     assert choose_translucency((0.1, 0.2, 0.3), 1.0, threshold=0.2) == "medium"
     assert choose_translucency((math.inf,) * 3, 1.0) == "medium"  # clear resin: a dielectric
+    # with a thickness (a tile): the BSSRDF from one footprint up to BSSRDF_MAX_MFP_OVER_THICKNESS
+    # thicknesses, the medium beyond; both ends of the range
+    limit = BSSRDF_MAX_MFP_OVER_THICKNESS
+    assert choose_translucency((0.05,), 0.0501, thickness_mm=3.0) == "albedo"
+    assert choose_translucency((0.05,), 0.0499, thickness_mm=3.0) == "bssrdf"
+    assert choose_translucency((0.99 * limit * 3.0,), 0.05, thickness_mm=3.0) == "bssrdf"
+    assert choose_translucency((1.01 * limit * 3.0,), 0.05, thickness_mm=3.0) == "medium"
+    assert choose_translucency((math.inf,) * 3, 0.05, thickness_mm=3.0) == "medium"
+    with pytest.raises(ValueError, match="thickness_mm"):
+        choose_translucency((0.1,), 0.05, thickness_mm=0.0)
     assert MediumRGB((1.0, 2.0, 0.0), (0.0, 0.0, 0.0), 0.5).transport_mfp_mm == (2.0, 1.0, math.inf)
 
 
@@ -397,12 +408,12 @@ def test_material_command_bad_input_exits_2(tmp_path, args, message):
 
 
 @pytest.mark.slow
-def test_translucent_example_renders_a_medium_end_to_end(tmp_path):
+def test_translucent_example_renders_a_bssrdf_end_to_end(tmp_path):
     from printapp.design_io import load_design, resolved_toml
 
     text = (ROOT / "examples" / "translucent_tile.toml").read_text()
     small = text.replace("width_px = 320", "width_px = 40").replace("height_px = 240", "height_px = 30")
-    small = small.replace("spp = 256", "spp = 2\nnoise = 1.0")
+    small = small.replace("spp = 64 ", "spp = 4 ")
     design_file = tmp_path / "translucent.toml"
     design_file.write_text(small)
     out = tmp_path / "out"
@@ -410,8 +421,10 @@ def test_translucent_example_renders_a_medium_end_to_end(tmp_path):
     assert result.exit_code == 0, result.output
     manifest = json.loads((out / "manifest.json").read_text())
     material = manifest["material"]
-    assert material["rendered_as"] == "homogeneous medium in a dielectric"
+    assert material["rendered_as"].startswith("BSSRDF")
     assert min(material["transport_mfp_mm"]) > material["pixel_footprint_mm"]
+    assert max(material["transport_mfp_mm"]) <= BSSRDF_MAX_MFP_OVER_THICKNESS * material["thickness_mm"]
+    assert manifest["render"]["noise"]["raw_relative_noise"] < 0.02
     assert (out / "preview.png").stat().st_size > 0
     # design.resolved.toml names the material and loads back to the same material
     resolved = load_design(out / "design.resolved.toml")
@@ -438,8 +451,8 @@ def test_design_material_validation_and_dense_resin_uses_the_albedo(tmp_path):
     assert derived.material.refractive_index == pytest.approx(chosen.appearance.refractive_index)
     assert derived.material.body_albedo == chosen.appearance.body_albedo
     vertices = np.array([[0, 0, 0], [20, 20, 2.3]], dtype=float)
-    medium, record = render_choice(derived, chosen, vertices)
-    assert medium is None and record["rendered_as"] == "body albedo (plastic)"
+    medium, record, kind = render_choice(derived, chosen, vertices)
+    assert medium is None and kind == "albedo" and record["rendered_as"] == "body albedo (plastic)"
     # the footprint is that of the preview camera: 1.1 r / sin(15 deg) away, 30 deg over 360 px
     radius = math.sqrt(20**2 + 20**2 + 2.3**2) / 2
     distance = 1.1 * radius / math.sin(math.radians(15))
@@ -451,3 +464,29 @@ def test_design_material_validation_and_dense_resin_uses_the_albedo(tmp_path):
         update={"material": derived.material.model_copy(update={"translucency": "medium"})}
     )
     assert render_choice(forced, chosen, vertices)[0] == chosen.appearance.medium
+    # at a fine pixel the white resin's light wanders farther than a pixel, and far less than the
+    # tile is thick; but the diffusion grid of the BSSRDF cannot resolve 0.04 mm in the default
+    # tile: the medium, saying why
+    fine = derived.model_copy(
+        update={"render": derived.render.model_copy(update={"width_px": 4000, "height_px": 3000})}
+    )
+    medium, record, kind = render_choice(fine, chosen, vertices)
+    assert kind == "medium" and medium == chosen.appearance.medium and "resolves" in record["why"]
+    # forcing the BSSRDF there is refused in one sentence (exit 2)
+    from printapp.errors import PrintappError
+
+    bssrdf = fine.model_copy(update={"material": fine.material.model_copy(update={"translucency": "bssrdf"})})
+    with pytest.raises(PrintappError, match='translucency = "bssrdf": the BSSRDF is rendered for tiles'):
+        render_choice(bssrdf, chosen, vertices)
+    # the translucent example's resin in a 12 x 12 x 3 mm tile: the BSSRDF
+    thin = design_from_dict(
+        {
+            "base": {"width_mm": 12.0, "depth_mm": 12.0, "thickness_mm": 3.0},
+            "material": {"name": "white-resin", "parameters": {"tio2_volume_fraction": 1e-4}},
+            "render": {"width_px": 320, "height_px": 240},
+        }
+    )
+    derived, chosen = derive_design_material(thin)
+    box = np.array([[0, 0, 0], [12, 12, 3.3]], dtype=float)
+    medium, record, kind = render_choice(derived, chosen, box)
+    assert kind == "bssrdf" and record["rendered_as"].startswith("BSSRDF") and "auto" in record["why"]

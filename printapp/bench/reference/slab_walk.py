@@ -1,4 +1,4 @@
-"""A plain Monte Carlo random walk in a scattering half-space: where light that entered comes back out.
+"""A plain Monte Carlo random walk in a scattering half-space or slab: where entering light comes out.
 
 The slow, simple reference for :mod:`render.bssrdf`'s dipole. Photons enter at the origin,
 straight down; they fly exponential distances with the reduced extinction ``sigma_t'``,
@@ -34,33 +34,52 @@ def exit_radii(
     ``len(result) / photons`` is the total diffuse reflectance; a histogram over annuli,
     divided by the annuli's areas and ``photons``, is the exitance profile ``R_d(r)``.
     """
+    return slab_exit_radii(photons, sigma_s, sigma_a, g, eta, np.inf, seed)[0]
+
+
+def slab_exit_radii(
+    photons: int,
+    sigma_s: float,
+    sigma_a: float,
+    g: float = 0.0,
+    eta: float = 1.0,
+    thickness_mm: float = np.inf,
+    seed: int = 0,
+) -> tuple[np.ndarray, np.ndarray]:
+    """As :func:`exit_radii` in a slab of ``thickness_mm``: exit radii at the entry face and at the far face.
+
+    Both faces have the relative index ``eta``.
+    """
     rng = np.random.default_rng(seed)
     reduced = sigma_s * (1.0 - g)
     sigma_t = sigma_a + reduced
     alpha = reduced / sigma_t
     pos = np.zeros((photons, 3))
     direction = np.tile([0.0, 0.0, 1.0], (photons, 1))  # z grows with depth
-    radii = []
+    radii: list[np.ndarray] = []
+    through: list[np.ndarray] = []
     alive = np.arange(photons)
     while alive.size:
         step = rng.exponential(1.0 / sigma_t, alive.size)
         new = pos[alive] + direction[alive] * step[:, None]
-        out = new[:, 2] < 0.0
+        keep = np.ones(alive.size, dtype=bool)
+        out = (new[:, 2] < 0.0) | (new[:, 2] > thickness_mm)
         if np.any(out):
-            # Crossing the surface: move to it, then leave or be reflected back in.
+            # Crossing a face: move to it, then leave or be reflected back in.
             idx = alive[out]
             d = direction[idx]
-            t = -pos[idx, 2] / d[:, 2]
+            face = np.where(d[:, 2] < 0.0, 0.0, thickness_mm)
+            t = (face - pos[idx, 2]) / d[:, 2]
             at = pos[idx] + d * t[:, None]
-            leave = rng.random(idx.size) >= _fresnel(-d[:, 2], eta)
-            radii.append(np.hypot(at[leave, 0], at[leave, 1]))
+            leave = rng.random(idx.size) >= _fresnel(np.abs(d[:, 2]), eta)
+            top = leave & (face == 0.0)
+            radii.append(np.hypot(at[top, 0], at[top, 1]))
+            bottom = leave & (face != 0.0)
+            through.append(np.hypot(at[bottom, 0], at[bottom, 1]))
             back = idx[~leave]
             pos[back] = at[~leave]
             direction[back, 2] = -direction[back, 2]
-            keep = np.ones(alive.size, dtype=bool)
             keep[np.flatnonzero(out)[leave]] = False
-        else:
-            keep = np.ones(alive.size, dtype=bool)
         inside = ~out
         pos[alive[inside]] = new[inside]
         # Scatter (isotropically) or be absorbed, at the interaction points.
@@ -72,4 +91,5 @@ def exit_radii(
         direction[scatter_here] = np.stack([s * np.cos(phi), s * np.sin(phi), mu], axis=1)
         keep[np.flatnonzero(inside)[absorbed]] = False
         alive = alive[keep]
-    return np.concatenate(radii) if radii else np.zeros(0)
+    empty = np.zeros(0)
+    return (np.concatenate(radii) if radii else empty), (np.concatenate(through) if through else empty)

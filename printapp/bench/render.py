@@ -161,6 +161,9 @@ def bench_render(repeats: int) -> StageResult:
                     "median_s": round(float(np.median(times)), 3),
                     "error_vs_geometry": round(error, 4),
                     "noise": round(noise, 4),
+                    # Noise falls as 1/sqrt(spp): the samples, hence (scene build included, so an
+                    # upper bound) the time, that 2 % needs, from this render's own noise.
+                    "time_to_2pct_s": round(float(np.median(times)) * max(1.0, (noise / 0.02) ** 2), 2),
                     "reference_s": round(reference_s, 2),
                 }
             )
@@ -172,7 +175,8 @@ def bench_render(repeats: int) -> StageResult:
         f"reference: geometry at {_REFERENCE_SPP} spp; every representation at {_SPP} spp, twice (two "
         "seeds); error = the RMS luminance difference to the reference with both renders' noise taken off, "
         "relative to the mean, over the tile's pixels; noise = one render's RMS noise, same units; times "
-        "include building the Mitsuba scene",
+        "include building the Mitsuba scene; time_to_2pct_s = the time scaled by the samples 2 % noise "
+        "needs ((noise / 2 %)^2, noise falling as 1/sqrt(spp)), an upper bound since the scene is built once",
     ]
     for _, scale, size in views:
         m, g = by[(f"{size[0]}x{size[1]}", scale, "model")], by[(f"{size[0]}x{size[1]}", scale, "geometry")]
@@ -194,7 +198,7 @@ def bench_render(repeats: int) -> StageResult:
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
 
-        fig, (left, right) = plt.subplots(1, 2, figsize=(11, 4), dpi=110)
+        fig, (left, right, third) = plt.subplots(1, 3, figsize=(15, 4), dpi=110)
         for mode, marker in (("model", "o"), ("table", "s"), ("geometry", "^")):
             for series, ls in (("distance", "-"), ("resolution", "--")):
                 sel = sorted(
@@ -205,6 +209,13 @@ def bench_render(repeats: int) -> StageResult:
                 left.plot(
                     [row["pixels_per_feature"] for row in sel],
                     [row["error_vs_geometry"] * 100 for row in sel],
+                    marker=marker,
+                    ls=ls,
+                    label=label,
+                )
+                third.plot(
+                    [row["pixels_per_feature"] for row in sel],
+                    [row["time_to_2pct_s"] for row in sel],
                     marker=marker,
                     ls=ls,
                     label=label,
@@ -229,6 +240,13 @@ def bench_render(repeats: int) -> StageResult:
         right.set_ylabel("image error (%)")
         right.axhline(5.0, color="grey", ls=":", lw=1)
         right.legend(fontsize=6)
+        third.set_xscale("log")
+        third.set_yscale("log")
+        third.set_xticks([0.25, 0.5, 1, 2, 4], ["0.25", "0.5", "1", "2", "4"])
+        third.minorticks_off()
+        third.set_xlabel("pixels per relief feature (far <- -> near)")
+        third.set_ylabel(f"time to 2 % noise (s; from the noise at {_SPP} spp)")
+        third.legend(fontsize=6)
         fig.suptitle("three representations of a relief: when a BRDF can stand in for geometry", fontsize=10)
         fig.tight_layout()
         fig.savefig(path)

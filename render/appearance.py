@@ -128,6 +128,49 @@ class Appearance:
     analytic: FitResult | None = None
 
 
+def glossmeter(
+    heights_mm: np.ndarray,
+    pitch_x_mm: float,
+    pitch_y_mm: float,
+    *,
+    rays: int,
+    ior: float,
+    body_albedo: float,
+    seed: int,
+    periodic: bool,
+) -> tuple[BrdfTable, dict[str, float], dict[str, float]]:
+    """The traced glossmeter (module doc): its table, and the gloss (GU) at 20, 60 and 85 degrees
+    with the plane of incidence along x, and along y.
+
+    Rays into each ISO 2813 receptor aperture (Table 1), seeded with ``seed + 1`` so that the
+    glossmeter and the BRDF table of :func:`predict_appearance` never share rays.
+    """
+    angles = sorted(GLOSS_APERTURES_DEG)
+    gloss_inc = [(a, phi) for phi in (0.0, 90.0) for a in angles]
+    g_wi = direction_from_angles(np.radians([a for a, _ in gloss_inc]), np.radians([p for _, p in gloss_inc]))
+    apertures = np.radians(
+        [[0.5 * GLOSS_APERTURES_DEG[a][0], 0.5 * GLOSS_APERTURES_DEG[a][1]] for a, _ in gloss_inc]
+    )
+    gloss_table = estimate_brdf(
+        heights_mm,
+        pitch_x_mm,
+        pitch_y_mm,
+        g_wi,
+        rays=rays,
+        ior=ior,
+        body_albedo=body_albedo,
+        n_theta=18,
+        n_phi=36,
+        seed=seed + 1,
+        aperture_rad=apertures,
+        periodic=periodic,
+    )
+    gu = gloss_units(gloss_table.aperture, np.array([a for a, _ in gloss_inc]))
+    gloss = {str(a): round(float(gu[i]), 3) for i, a in enumerate(angles)}
+    gloss_y = {str(a): round(float(gu[len(angles) + i]), 3) for i, a in enumerate(angles)}
+    return gloss_table, gloss, gloss_y
+
+
 def predict_appearance(
     field: HeightField,
     *,
@@ -206,29 +249,16 @@ def predict_appearance(
         # The same seed: the earlier run's rays are the first of the longer run's.
         table = trace(budget)
         lobe_errors = table_lobe_errors(table)
-    angles = sorted(GLOSS_APERTURES_DEG)
-    gloss_inc = [(a, phi) for phi in (0.0, 90.0) for a in angles]
-    g_wi = direction_from_angles(np.radians([a for a, _ in gloss_inc]), np.radians([p for _, p in gloss_inc]))
-    apertures = np.radians(
-        [[0.5 * GLOSS_APERTURES_DEG[a][0], 0.5 * GLOSS_APERTURES_DEG[a][1]] for a, _ in gloss_inc]
-    )
-    gloss_table = estimate_brdf(
+    gloss_table, gloss, gloss_y = glossmeter(
         heights_mm,
         pitch_x_mm,
         pitch_y_mm,
-        g_wi,
         rays=rays,
         ior=ior,
         body_albedo=body_albedo,
-        n_theta=18,
-        n_phi=36,
-        seed=seed + 1,
-        aperture_rad=apertures,
+        seed=seed,
         periodic=periodic,
     )
-    gu = gloss_units(gloss_table.aperture, np.array([a for a, _ in gloss_inc]))
-    gloss = {str(a): round(float(gu[i]), 3) for i, a in enumerate(angles)}
-    gloss_y = {str(a): round(float(gu[len(angles) + i]), 3) for i, a in enumerate(angles)}
     haze, haze_reason = haze_index(gloss)
     analytic = fit_microfacet(
         wi,

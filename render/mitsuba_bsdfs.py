@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from render.mitsuba_frames import in_world_x_frame
+from render.mitsuba_shared import fresnel_dr, in_world_x_frame
 
 _registered: dict[str, Any] = {}
 
@@ -99,13 +99,7 @@ def _register_plugins() -> None:
     if variant in _registered:
         return
 
-    def fresnel(cos_i, eta):
-        cos_i = dr.clip(dr.abs(cos_i), 0.0, 1.0)
-        sin2_t = (1.0 - cos_i * cos_i) / (eta * eta)
-        cos_t = dr.safe_sqrt(1.0 - sin2_t)
-        r_perp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t)
-        r_par = (eta * cos_i - cos_t) / (eta * cos_i + cos_t)
-        return dr.select(sin2_t >= 1.0, 1.0, 0.5 * (r_perp * r_perp + r_par * r_par))
+    fresnel = fresnel_dr
 
     class CompactResin(mi.BSDF):
         """The fitted compact model: anisotropic microfacet lobe, optional sharp spike, Lambertian body."""
@@ -337,7 +331,7 @@ def _register_plugins() -> None:
             return dr.select(ok, mi.warp.square_to_cosine_hemisphere_pdf(wo), 0.0)
 
         def eval_pdf(self, ctx, si, wo, active=True):
-            # Named, not dispatched: a subclass (render.mitsuba_frames) has already rotated si and wo.
+            # Named, not dispatched: a subclass (render.mitsuba_shared) has already rotated si and wo.
             return TabulatedBRDF.eval(self, ctx, si, wo, active), TabulatedBRDF.pdf(self, ctx, si, wo, active)
 
         def sample(self, ctx, si, sample1, sample2, active=True):

@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from render.mitsuba_frames import in_world_x_frame
+from render.mitsuba_shared import fresnel_dr, in_world_x_frame
 
 _models: dict[str, TabulatedSurface] = {}
 _registered: set[str] = set()
@@ -87,13 +87,7 @@ def register_plugin() -> None:
     if variant in _registered:
         return
 
-    def fresnel(cos_i, eta):
-        cos_i = dr.clip(dr.abs(cos_i), 0.0, 1.0)
-        sin2_t = (1.0 - cos_i * cos_i) / (eta * eta)
-        cos_t = dr.safe_sqrt(1.0 - sin2_t)
-        r_perp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t)
-        r_par = (eta * cos_i - cos_t) / (eta * cos_i + cos_t)
-        return dr.select(sin2_t >= 1.0, 1.0, 0.5 * (r_perp * r_perp + r_par * r_par))
+    fresnel = fresnel_dr
 
     def corners(w, n_t, n_p):
         """The four grid nodes round ``w`` and their bilinear weights (theta clamped, phi periodic)."""

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from noise.heightfield import HeightField
-from render.appearance import DEFAULT_INCIDENT_DEG, GLOSS_APERTURES_DEG, gloss_units, haze_index
+from render.appearance import DEFAULT_INCIDENT_DEG, glossmeter, haze_index
 from render.brdf_fit import lobe_alpha
 from render.gonio import direction_from_angles, estimate_brdf
 
@@ -63,28 +63,16 @@ def traced_gloss(
         )
 
     table = trace(rays)
-    angles = sorted(GLOSS_APERTURES_DEG)
-    gloss_inc = [(a, phi) for phi in (0.0, 90.0) for a in angles]
-    g_wi = direction_from_angles(np.radians([a for a, _ in gloss_inc]), np.radians([p for _, p in gloss_inc]))
-    apertures = np.radians(
-        [[0.5 * GLOSS_APERTURES_DEG[a][0], 0.5 * GLOSS_APERTURES_DEG[a][1]] for a, _ in gloss_inc]
-    )
-    gloss_table = estimate_brdf(
+    _, gloss, _ = glossmeter(
         field.heights_mm,
         field.pitch_x_mm,
         field.pitch_y_mm,
-        g_wi,
         rays=rays,
         ior=ior,
         body_albedo=body_albedo,
-        n_theta=18,
-        n_phi=36,
-        seed=seed + 1,
-        aperture_rad=apertures,
+        seed=seed,
         periodic=False,
     )
-    gu = gloss_units(gloss_table.aperture, np.array([a for a, _ in gloss_inc]))
-    gloss = {str(a): round(float(gu[i]), 3) for i, a in enumerate(angles)}
     haze, haze_reason = haze_index(gloss)
     alpha_long, alpha_short, azimuth = lobe_alpha(
         table.f_specular[normal], table.theta_o_edges, table.phi_o_edges

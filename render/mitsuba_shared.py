@@ -1,4 +1,5 @@
-"""A shading frame that does not depend on how the surface is triangulated, for printapp's BSDF plugins.
+"""What printapp's Mitsuba BSDF plugins share: Fresnel in Dr.Jit, and a shading frame that does not
+depend on how the surface is triangulated.
 
 Mitsuba builds a triangle's shading frame from its first edge when the mesh carries no
 texture coordinates, so an anisotropic (or azimuth-dependent, tabulated) BRDF turns from
@@ -12,6 +13,19 @@ the normal is within 26 degrees of x, on faces whose azimuth the tables do not d
 from __future__ import annotations
 
 from typing import Any
+
+
+def fresnel_dr(cos_i: Any, eta: Any) -> Any:
+    """Unpolarised Fresnel reflectance of a dielectric interface (relative index ``eta``) in Dr.Jit,
+    the same formula as :func:`render.fresnel.fresnel_dielectric` (1 beyond the critical angle)."""
+    import drjit as dr
+
+    cos_i = dr.clip(dr.abs(cos_i), 0.0, 1.0)
+    sin2_t = (1.0 - cos_i * cos_i) / (eta * eta)
+    cos_t = dr.safe_sqrt(1.0 - sin2_t)
+    r_perp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t)
+    r_par = (eta * cos_i - cos_t) / (eta * cos_i + cos_t)
+    return dr.select(sin2_t >= 1.0, 1.0, 0.5 * (r_perp * r_perp + r_par * r_par))
 
 
 def in_world_x_frame(base: Any) -> Any:

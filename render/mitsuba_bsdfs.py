@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from render.mitsuba_shared import fresnel_dr, in_world_x_frame
+from render.mitsuba_shared import fresnel_dr, glossy_or_diffuse_sample, in_world_x_frame
 
 _registered: dict[str, Any] = {}
 
@@ -227,20 +227,7 @@ def _register_plugins() -> None:
             wo_spec = self._unrot(2.0 * dr.dot(wi, m) * m - wi)
             wo_diff = mi.warp.square_to_cosine_hemisphere(sample2)
             wo = dr.select(pick_spec, wo_spec, wo_diff)
-            bs = mi.BSDFSample3f()
-            bs.wo = wo
-            bs.eta = 1.0
-            bs.sampled_component = dr.select(pick_spec, mi.UInt32(0), mi.UInt32(1))
-            bs.sampled_type = dr.select(
-                pick_spec,
-                mi.UInt32(+mi.BSDFFlags.GlossyReflection),
-                mi.UInt32(+mi.BSDFFlags.DiffuseReflection),
-            )
-            value, body, pdf = self._all(wi_l, wo)
-            bs.pdf = pdf
-            ok = active & (mi.Frame3f.cos_theta(wo) > 0) & (pdf > 0)
-            weight = (mi.Spectrum(value) + self.body_factor * body) / dr.maximum(pdf, 1e-12)
-            return bs, dr.select(ok, weight, 0.0)
+            return glossy_or_diffuse_sample(wo, pick_spec, *self._all(wi_l, wo), self.body_factor, active)
 
         def to_string(self):
             return f"CompactResin[alpha = ({self.alpha_u}, {self.alpha_v}), spike = {self.spike_weight}]"

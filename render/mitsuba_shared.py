@@ -28,6 +28,30 @@ def fresnel_dr(cos_i: Any, eta: Any) -> Any:
     return dr.select(sin2_t >= 1.0, 1.0, 0.5 * (r_perp * r_perp + r_par * r_par))
 
 
+def glossy_or_diffuse_sample(
+    wo: Any, pick_glossy: Any, glossy: Any, body: Any, pdf: Any, body_factor: Any, active: Any
+) -> tuple[Any, Any]:
+    """The ``BSDFSample3f`` and weight of a direction ``wo`` drawn from a glossy lobe or the
+    cosine-weighted body (``pick_glossy`` says which), whose value is ``glossy + body_factor * body``
+    (already times the cosine) and whose mixture density is ``pdf``."""
+    import drjit as dr
+    import mitsuba as mi
+
+    bs = mi.BSDFSample3f()
+    bs.wo = wo
+    bs.eta = 1.0
+    bs.sampled_component = dr.select(pick_glossy, mi.UInt32(0), mi.UInt32(1))
+    bs.sampled_type = dr.select(
+        pick_glossy,
+        mi.UInt32(+mi.BSDFFlags.GlossyReflection),
+        mi.UInt32(+mi.BSDFFlags.DiffuseReflection),
+    )
+    bs.pdf = pdf
+    ok = active & (mi.Frame3f.cos_theta(wo) > 0) & (pdf > 0)
+    weight = (mi.Spectrum(glossy) + body_factor * body) / dr.maximum(pdf, 1e-12)
+    return bs, dr.select(ok, weight, 0.0)
+
+
 def in_world_x_frame(base: Any) -> Any:
     """A subclass of the Mitsuba BSDF class ``base`` that evaluates and samples it in the world-x frame.
 

@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from render.mitsuba_shared import fresnel_dr, in_world_x_frame
+from render.mitsuba_shared import fresnel_dr, glossy_or_diffuse_sample, in_world_x_frame
 
 _models: dict[str, TabulatedSurface] = {}
 _registered: set[str] = set()
@@ -223,20 +223,7 @@ def register_plugin() -> None:
                 m = m_spike
             wo_spec = 2.0 * dr.dot(wi, m) * m - wi
             wo = dr.select(pick_spec, wo_spec, mi.warp.square_to_cosine_hemisphere(sample2))
-            bs = mi.BSDFSample3f()
-            bs.wo = wo
-            bs.eta = 1.0
-            bs.sampled_component = dr.select(pick_spec, mi.UInt32(0), mi.UInt32(1))
-            bs.sampled_type = dr.select(
-                pick_spec,
-                mi.UInt32(+mi.BSDFFlags.GlossyReflection),
-                mi.UInt32(+mi.BSDFFlags.DiffuseReflection),
-            )
-            spec, body, pdf = self._all(wi, wo)
-            bs.pdf = pdf
-            ok = active & (mi.Frame3f.cos_theta(wo) > 0) & (pdf > 0)
-            weight = (mi.Spectrum(spec) + self.body_factor * body) / dr.maximum(pdf, 1e-12)
-            return bs, dr.select(ok, weight, 0.0)
+            return glossy_or_diffuse_sample(wo, pick_spec, *self._all(wi, wo), self.body_factor, active)
 
         def to_string(self):
             return f"TabulatedResin[spike = {self.spike_weight}, extent = {self.extent}]"

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -68,6 +68,72 @@ def representation_error(
     bias2 = mse - var_a / 2.0 - reference_noise_var
     scale = max(float(np.mean(ref)), 1e-12)
     return float(np.sqrt(max(bias2, 0.0))) / scale, float(np.sqrt(var_a)) / scale
+
+
+def render_chart(rows: list[dict[str, Any]], path: Path) -> None:
+    """Error against pixels per feature, error against time, and time to 2 % noise, per representation."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.ticker import NullFormatter
+
+    from render.representation import GEOMETRY_FROM_FEATURES_PER_PIXEL
+
+    fig, (left, right, third) = plt.subplots(1, 3, figsize=(15, 4), dpi=110)
+    for mode, marker in (("model", "o"), ("table", "s"), ("geometry", "^")):
+        for series, ls in (("distance", "-"), ("resolution", "--")):
+            sel = sorted(
+                (row for row in rows if row["mode"] == mode and row["series"] == series),
+                key=lambda row: row["pixels_per_feature"],
+            )
+            label = f"{mode} ({'camera backs off' if series == 'distance' else 'coarser image'})"
+            left.plot(
+                [row["pixels_per_feature"] for row in sel],
+                [row["error_vs_geometry"] * 100 for row in sel],
+                marker=marker,
+                ls=ls,
+                label=label,
+            )
+            third.plot(
+                [row["pixels_per_feature"] for row in sel],
+                [row["time_to_2pct_s"] for row in sel],
+                marker=marker,
+                ls=ls,
+                label=label,
+            )
+            right.plot(
+                [row["median_s"] for row in sel],
+                [row["error_vs_geometry"] * 100 for row in sel],
+                marker=marker,
+                ls="",
+                label=label,
+            )
+    left.axhline(5.0, color="grey", ls=":", lw=1)
+    left.axvline(GEOMETRY_FROM_FEATURES_PER_PIXEL, color="grey", ls="--", lw=1, label="chooser threshold")
+    left.set_xscale("log")
+    left.set_xticks([0.25, 0.5, 1, 2, 4], ["0.25", "0.5", "1", "2", "4"])
+    left.minorticks_off()
+    left.set_xlabel("pixels per relief feature (far <- -> near)")
+    left.set_ylabel("image error vs geometry reference (%)")
+    left.legend(fontsize=6)
+    right.set_xscale("log")
+    right.xaxis.set_minor_formatter(NullFormatter())  # crowded labels between decades
+    right.set_xlabel(f"render time at {_SPP} spp (s)")
+    right.set_ylabel("image error (%)")
+    right.axhline(5.0, color="grey", ls=":", lw=1)
+    right.legend(fontsize=6)
+    third.set_xscale("log")
+    third.set_yscale("log")
+    third.set_xticks([0.25, 0.5, 1, 2, 4], ["0.25", "0.5", "1", "2", "4"])
+    third.minorticks_off()
+    third.set_xlabel("pixels per relief feature (far <- -> near)")
+    third.set_ylabel(f"time to 2 % noise (s; from the noise at {_SPP} spp)")
+    third.legend(fontsize=6)
+    fig.suptitle("three representations of a relief: when a BRDF can stand in for geometry", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
 
 
 def bench_render(repeats: int) -> StageResult:
@@ -193,64 +259,7 @@ def bench_render(repeats: int) -> StageResult:
     )
 
     def chart(path: Path) -> None:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-
-        fig, (left, right, third) = plt.subplots(1, 3, figsize=(15, 4), dpi=110)
-        for mode, marker in (("model", "o"), ("table", "s"), ("geometry", "^")):
-            for series, ls in (("distance", "-"), ("resolution", "--")):
-                sel = sorted(
-                    (row for row in rows if row["mode"] == mode and row["series"] == series),
-                    key=lambda row: row["pixels_per_feature"],
-                )
-                label = f"{mode} ({'camera backs off' if series == 'distance' else 'coarser image'})"
-                left.plot(
-                    [row["pixels_per_feature"] for row in sel],
-                    [row["error_vs_geometry"] * 100 for row in sel],
-                    marker=marker,
-                    ls=ls,
-                    label=label,
-                )
-                third.plot(
-                    [row["pixels_per_feature"] for row in sel],
-                    [row["time_to_2pct_s"] for row in sel],
-                    marker=marker,
-                    ls=ls,
-                    label=label,
-                )
-                right.plot(
-                    [row["median_s"] for row in sel],
-                    [row["error_vs_geometry"] * 100 for row in sel],
-                    marker=marker,
-                    ls="",
-                    label=label,
-                )
-        left.axhline(5.0, color="grey", ls=":", lw=1)
-        left.axvline(GEOMETRY_FROM_FEATURES_PER_PIXEL, color="grey", ls="--", lw=1, label="chooser threshold")
-        left.set_xscale("log")
-        left.set_xticks([0.25, 0.5, 1, 2, 4], ["0.25", "0.5", "1", "2", "4"])
-        left.minorticks_off()
-        left.set_xlabel("pixels per relief feature (far <- -> near)")
-        left.set_ylabel("image error vs geometry reference (%)")
-        left.legend(fontsize=6)
-        right.set_xscale("log")
-        right.set_xlabel(f"render time at {_SPP} spp (s)")
-        right.set_ylabel("image error (%)")
-        right.axhline(5.0, color="grey", ls=":", lw=1)
-        right.legend(fontsize=6)
-        third.set_xscale("log")
-        third.set_yscale("log")
-        third.set_xticks([0.25, 0.5, 1, 2, 4], ["0.25", "0.5", "1", "2", "4"])
-        third.minorticks_off()
-        third.set_xlabel("pixels per relief feature (far <- -> near)")
-        third.set_ylabel(f"time to 2 % noise (s; from the noise at {_SPP} spp)")
-        third.legend(fontsize=6)
-        fig.suptitle("three representations of a relief: when a BRDF can stand in for geometry", fontsize=10)
-        fig.tight_layout()
-        fig.savefig(path)
-        plt.close(fig)
+        render_chart(rows, path)
 
     return StageResult(
         "render",

@@ -83,7 +83,7 @@ def _address_space_left() -> int | None:
                 if line.startswith("VmSize:"):
                     return max(0, soft - int(line.split()[1]) * 1024)
     except (OSError, ValueError, IndexError):
-        pass
+        return soft  # no /proc (not Linux) or an unreadable line: the whole limit, as an upper bound
     return soft
 
 

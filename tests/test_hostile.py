@@ -106,7 +106,7 @@ def _listing(folder: Path) -> set[str]:
     return {str(p.relative_to(folder)) for p in folder.rglob("*")}
 
 
-def hostile(worker: Worker, args: list, files: dict[str, bytes] | None = None) -> dict:
+def assert_handled(worker: Worker, args: list, files: dict[str, bytes] | None = None) -> dict:
     """Run ``printapp ARGS`` in a fresh folder holding ``files``; assert the contract; return the answer."""
     folder = Path(tempfile.mkdtemp(prefix="printapp-hostile-"))
     try:
@@ -129,8 +129,9 @@ def hostile(worker: Worker, args: list, files: dict[str, bytes] | None = None) -
         shutil.rmtree(folder, ignore_errors=True)
 
 
-def refused(worker: Worker, args: list, files: dict[str, bytes] | None, *fragments: str) -> str:
-    answer = hostile(worker, args, files)
+def assert_refused(worker: Worker, args: list, files: dict[str, bytes] | None, *fragments: str) -> str:
+    """:func:`assert_handled`, and assert exit 2 with every fragment in its one sentence; return it."""
+    answer = assert_handled(worker, args, files)
     assert answer["code"] == 2, answer
     message = " ".join(answer["stderr"].split())
     for fragment in fragments:
@@ -256,7 +257,7 @@ def test_a_failed_verdict_leaves_no_earlier_model(worker):
 
 
 def test_oversized_relief_is_refused_naming_the_pitch(worker):
-    message = refused(
+    message = assert_refused(
         worker,
         ["--max-memory", "1G", "design", "d.toml", "-o", "out"],
         {"d.toml": b"[relief]\npitch_mm = 0.001\n"},
@@ -268,11 +269,11 @@ def test_oversized_relief_is_refused_naming_the_pitch(worker):
 
 
 def test_endless_lic_is_refused(worker):
-    refused(worker, ["texture", "lic", "--length", "1e9", "-o", "x.png"], None, "--length:", "fits")
+    assert_refused(worker, ["texture", "lic", "--length", "1e9", "-o", "x.png"], None, "--length:", "fits")
 
 
 def test_an_adaptive_emboss_too_fine_for_the_budget_is_refused(worker):
-    refused(
+    assert_refused(
         worker,
         [
             "--max-memory",
@@ -328,62 +329,62 @@ def test_an_adaptive_emboss_too_fine_for_the_budget_is_refused(worker):
 def test_malformed_height_maps_are_one_sentence(worker, files, fragments):
     name = next(iter(files))
     extra = ["--pitch-mm", "0.01"] if name.endswith(".npy") else ["--width-mm", "10", "--depth-mm", "1"]
-    refused(worker, ["heightmap", name, *extra], files, *fragments)
+    assert_refused(worker, ["heightmap", name, *extra], files, *fragments)
 
 
 def test_special_files_are_refused(worker):
-    refused(worker, ["design", "/dev/zero", "-o", "out"], None, "/dev/zero", "regular design file")
-    refused(
+    assert_refused(worker, ["design", "/dev/zero", "-o", "out"], None, "/dev/zero", "regular design file")
+    assert_refused(
         worker,
         ["texture", "--from", "d.toml", "-o", "x.png"],
         {"d.toml": b'[texture]\nfrom = "/dev/zero"\n'},
         "texture.from /dev/zero",
         "regular texture fragment file",
     )
-    folder_mesh = refused(worker, ["slice", ".", "-o", "x.sl1"], None, "found a folder")
+    folder_mesh = assert_refused(worker, ["slice", ".", "-o", "x.sl1"], None, "found a folder")
     assert "no such" not in folder_mesh
 
 
 def test_user_text_is_never_markup(worker):
-    answer = hostile(worker, ["texture", "--from", "d [v2].toml", "--size", "16", "-o", "x.png"],
+    answer = assert_handled(worker, ["texture", "--from", "d [v2].toml", "--size", "16", "-o", "x.png"],
                      {"d [v2].toml": b'name = "tile [/]"\n[texture]\nkind = "scn"\n'})  # fmt: skip
     assert answer["code"] == 0 and "d [v2].toml" in answer["stdout"], answer
-    message = refused(worker, ["texture", "--from", "d.toml", "-o", "x.png"],
+    message = assert_refused(worker, ["texture", "--from", "d.toml", "-o", "x.png"],
                       {"d.toml": b"[appearance]\ngloss_60 = [50, 10]\n"}, "[min, max]")  # fmt: skip
     assert "[50, 10]" in message
 
 
 def test_deep_nesting_a_bom_and_a_long_key(worker):
     deep = {"d.toml": b"a = " + b"[" * 5000 + b"]" * 5000}
-    refused(worker, ["texture", "--from", "d.toml", "-o", "x.png"], deep, "nests tables or arrays")
-    bom = hostile(worker, ["texture", "--from", "d.toml", "--size", "16", "-o", "x.png"],
+    assert_refused(worker, ["texture", "--from", "d.toml", "-o", "x.png"], deep, "nests tables or arrays")
+    bom = assert_handled(worker, ["texture", "--from", "d.toml", "--size", "16", "-o", "x.png"],
                   {"d.toml": b'\xef\xbb\xbfname = "bom"\n'})  # fmt: skip
     assert bom["code"] == 0, bom
-    message = refused(worker, ["texture", "--from", "d.toml", "-o", "x.png"],
+    message = assert_refused(worker, ["texture", "--from", "d.toml", "-o", "x.png"],
                       {"d.toml": b"[texture]\n" + b"k" * 200_000 + b" = 1\n"}, "unknown key")  # fmt: skip
     assert len(message) < 1000
 
 
 def test_numbers_that_are_not_numbers(worker):
     args = ["emboss", "m.png", "--width-mm", "10", "--depth-mm", "1", "--base-mm", "inf", "-o", "s.stl"]
-    refused(worker, args, {"m.png": image_bytes(np.zeros((8, 8), np.uint8))}, "--base-mm:")
+    assert_refused(worker, args, {"m.png": image_bytes(np.zeros((8, 8), np.uint8))}, "--base-mm:")
     box = SAMPLES / "meshes" / "featuretype.STL"
-    refused(worker, ["brdf", box, "--pitch-mm", "inf", "-o", "b.npz"], None, "--pitch-mm:")
-    refused(worker, ["displace", box, "--amplitude-mm", "-1", "-o", "x.stl"], None, "--amplitude-mm:")
+    assert_refused(worker, ["brdf", box, "--pitch-mm", "inf", "-o", "b.npz"], None, "--pitch-mm:")
+    assert_refused(worker, ["displace", box, "--amplitude-mm", "-1", "-o", "x.stl"], None, "--amplitude-mm:")
     args = ["displace", box, "--amplitude-mm", "0.1", "--feature-size-mm", "nan", "-o", "x.stl"]
-    refused(worker, args, None, "--feature-size-mm:")
+    assert_refused(worker, args, None, "--feature-size-mm:")
 
 
 def test_a_cube_too_small_to_print_is_refused(worker):
     import trimesh
 
     tiny = trimesh.creation.box(extents=(1e-6, 1e-6, 1e-6))
-    refused(worker, ["slice", "t.stl", "-o", "t.sl1"], {"t.stl": trimesh.exchange.stl.export_stl(tiny)},
-            "below the first slice plane")  # fmt: skip
+    stl = {"t.stl": trimesh.exchange.stl.export_stl(tiny)}
+    assert_refused(worker, ["slice", "t.stl", "-o", "t.sl1"], stl, "below the first slice plane")
 
 
 def test_a_tiny_x3p_cannot_make_a_huge_slab(worker):
-    refused(
+    assert_refused(
         worker,
         ["emboss", "m.x3p", "-o", "s.stl"],
         {"m.x3p": x3p_bytes(2000, 2000, "1e-3", "1e-3", np.zeros(4_000_000).tobytes())},
@@ -393,7 +394,7 @@ def test_a_tiny_x3p_cannot_make_a_huge_slab(worker):
 
 
 def test_outputs_get_the_umask_mode(worker, tmp_path):
-    answer = hostile(worker, ["texture", "scn", "--size", "16", "-o", "x.png"])
+    answer = assert_handled(worker, ["texture", "scn", "--size", "16", "-o", "x.png"])
     assert answer["code"] == 0 and answer["files"] == ["x.png"]
     args = [sys.executable, "-m", "printapp", "texture", "scn", "--size", "16", "-o", tmp_path / "y.png"]
     subprocess.run(args, capture_output=True, text=True, check=True)
@@ -458,7 +459,7 @@ def test_fuzz_height_map_bytes(worker, name, edits, truncate):
     data = _mutate(SEEDS[name], edits)
     data = data if truncate is None else data[:truncate]
     extra = ["--pitch-mm", "0.01"] if name.endswith(".npy") else ["--width-mm", "10", "--depth-mm", "1"]
-    hostile(worker, ["heightmap", name, *extra, "--json", "h.json"], {name: data})
+    assert_handled(worker, ["heightmap", name, *extra, "--json", "h.json"], {name: data})
 
 
 DESIGN_KEYS = [
@@ -493,7 +494,9 @@ def test_fuzz_design_tables(worker, picks):
     text = "".join(
         f"[{t}]\n" + "".join(f"{k} = {v}\n" for k, v in keys.items()) for t, keys in tables.items()
     )
-    hostile(worker, ["texture", "--from", "d.toml", "--size", "16", "-o", "x.png"], {"d.toml": text.encode()})
+    assert_handled(
+        worker, ["texture", "--from", "d.toml", "--size", "16", "-o", "x.png"], {"d.toml": text.encode()}
+    )
 
 
 @FUZZ
@@ -523,7 +526,7 @@ def test_fuzz_texture_options(worker, kind, options, size):
     args = ["texture", kind, "--size", size, "-o", "x.npy"]
     for flag, value in options:
         args += [flag, value]
-    hostile(worker, args)
+    assert_handled(worker, args)
 
 
 STL_SEED = __import__("trimesh").exchange.stl.export_stl(
@@ -541,10 +544,10 @@ def test_fuzz_mesh_bytes(worker, edits, truncate, command):
     data = _mutate(STL_SEED, edits)
     data = data if truncate is None else data[:truncate]
     if command == "slice":
-        hostile(worker, ["slice", "m.stl", "-o", "m.sl1"], {"m.stl": data})
+        assert_handled(worker, ["slice", "m.stl", "-o", "m.sl1"], {"m.stl": data})
     else:
         args = ["displace", "m.stl", "--amplitude-mm", "0.1", "--feature-size-mm", "2", "-o", "d.stl"]
-        hostile(worker, args, {"m.stl": data})
+        assert_handled(worker, args, {"m.stl": data})
 
 
 @FUZZ
@@ -564,4 +567,4 @@ def test_fuzz_emboss_options(worker, options):
     args += [] if "--depth-mm" in given_flags else ["--depth-mm", "0.5"]
     for flag, value in options:
         args += [flag, value]
-    hostile(worker, args, {"m.png": SEEDS["m.png"]})
+    assert_handled(worker, args, {"m.png": SEEDS["m.png"]})

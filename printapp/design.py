@@ -472,6 +472,17 @@ class Design(_Section):
         return self
 
     @model_validator(mode="after")
+    def _bssrdf_needs_a_tile(self) -> Design:
+        # Known from the file alone; whether the tile's grid resolves the light's path is known
+        # only with the material's optics, at rendering (printapp.material_design.render_choice).
+        if self.material.translucency == "bssrdf" and (not isinstance(self.base, TileBase) or self.combine):
+            raise ValueError(
+                'material.translucency = "bssrdf": the BSSRDF is rendered for tiles without booleans only; '
+                'use "medium" or "auto"'
+            )
+        return self
+
+    @model_validator(mode="after")
     def _solve_needs_a_tile(self) -> Design:
         if self.solve is not None and not isinstance(self.base, TileBase):
             raise ValueError(

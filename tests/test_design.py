@@ -125,3 +125,14 @@ def test_lic_field_specs(tmp_path):
     path = tmp_path / "d.toml"
     path.write_text('[texture]\nkind = "lic"\nfield = "image:angles.png"\n')
     assert load_design(path).texture.field == f"image:{tmp_path / 'angles.png'}"
+
+
+def test_a_bssrdf_on_a_mesh_or_with_booleans_is_refused_at_loading():
+    material = {"name": "white-resin", "translucency": "bssrdf"}
+    mesh = {"base": {"path": "examples/cylinder.stl"}, "material": material}
+    with pytest.raises(
+        DesignError, match=r'^part.toml: material.translucency = "bssrdf": .*tiles without booleans'
+    ):
+        design_from_dict(mesh, "part.toml")
+    tile = design_from_dict({"material": material}, "tile.toml")  # a tile is left to the renderer to judge
+    assert tile.material.translucency == "bssrdf"

@@ -15,21 +15,32 @@ hashing (:mod:`noise.hashing`), tangent frames (:mod:`noise.frames`), line integ
 convolution (:mod:`noise.lic`, :mod:`noise.surface`) and spectra (:mod:`noise.spectra`).
 """
 
-from noise.cellular import cellular
-from noise.framed import fbm_framed, sparse_convolution_framed, turbulence_framed
-from noise.ridged import domain_warp, vein_network
-from noise.scn import (
-    CELL_SEED_MODES,
-    fbm,
-    fbm_grid,
-    octaves_for_pitch,
-    sparse_convolution,
-    sparse_convolution_grid,
-    turbulence,
-    turbulence_grid,
-    unit_noise,
+from noise.lazy import lazy_attributes
+
+# Names resolve on first use, so that the light modules (heightfield, hashing) load without numba.
+__getattr__, __dir__ = lazy_attributes(
+    "noise",
+    globals(),
+    {
+        "cellular": "noise.cellular",
+        "fbm_framed": "noise.framed",
+        "sparse_convolution_framed": "noise.framed",
+        "turbulence_framed": "noise.framed",
+        "domain_warp": "noise.ridged",
+        "vein_network": "noise.ridged",
+        "CELL_SEED_MODES": "noise.scn",
+        "fbm": "noise.scn",
+        "fbm_grid": "noise.scn",
+        "octaves_for_pitch": "noise.scn",
+        "sparse_convolution": "noise.scn",
+        "sparse_convolution_grid": "noise.scn",
+        "turbulence": "noise.scn",
+        "turbulence_grid": "noise.scn",
+        "unit_noise": "noise.scn",
+        "veins": "noise.veins",
+        "veins_grid": "noise.veins",
+    },
 )
-from noise.veins import veins, veins_grid
 
 __all__ = [
     "CELL_SEED_MODES",

@@ -95,7 +95,6 @@ def emboss_heightmap(
     :func:`printapp.slab.slab_arrays` and its invariant tests), so the costly solid
     checks of ``printapp design`` are not run.
     """
-    from printapp.adaptive_slab import adaptive_slab_arrays
     from printapp.exporters import check_mesh_output, write_mesh
     from printapp.slab import slab_arrays
     from printapp.topography import load_corrected
@@ -147,6 +146,8 @@ def emboss_heightmap(
     if max_error_um is None:
         vertices, faces = slab_arrays(field, base_mm)
     else:
+        from printapp.adaptive_slab import adaptive_slab_arrays  # scipy and numba: only when asked
+
         vertices, faces, worst = adaptive_slab_arrays(resampled, width, depth, base_mm, max_error_um / 1000)
     written = write_mesh(out, vertices, faces)
     return Embossed(field, base_mm, len(faces), worst, written)

@@ -45,32 +45,35 @@ def slab_arrays(field: HeightField, base_thickness_mm: float) -> tuple[np.ndarra
     if base_thickness_mm <= 0 or float(h.min()) + base_thickness_mm <= 0:
         raise ValueError("base_thickness_mm: the slab's top must stay above z = 0")
     ny, nx = h.shape
-    xx, yy = field.grid_points()
-    top = np.column_stack([xx.ravel(), yy.ravel(), (h + base_thickness_mm).ravel()])
-
-    idx = np.arange(ny * nx).reshape(ny, nx)
-    v00 = idx[:-1, :-1].ravel()
-    v10 = idx[:-1, 1:].ravel()
-    v01 = idx[1:, :-1].ravel()
-    v11 = idx[1:, 1:].ravel()
-    top_faces = np.concatenate([np.column_stack([v00, v10, v11]), np.column_stack([v00, v11, v01])])
-
+    n_top = ny * nx
     ring = _boundary_ring(ny, nx)
     n_ring = ring.size
-    bottom_ring = top[ring].copy()
-    bottom_ring[:, 2] = 0.0
-    centre = np.array([[xx[0, 0] + field.width_mm / 2, yy[0, 0] + field.depth_mm / 2, 0.0]])
-    n_top = top.shape[0]
+    # Filled in place (no column_stack): this is most of `printapp emboss` on a large map.
+    vertices = np.empty((n_top + n_ring + 1, 3))
+    top = vertices[:n_top].reshape(ny, nx, 3)
+    top[:, :, 0] = field.origin_x_mm + np.arange(nx) * field.pitch_x_mm
+    top[:, :, 1] = (field.origin_y_mm + np.arange(ny) * field.pitch_y_mm)[:, None]
+    np.add(h, base_thickness_mm, out=top[:, :, 2])
+    vertices[n_top : n_top + n_ring] = vertices[ring]
+    vertices[n_top : n_top + n_ring, 2] = 0.0
+    vertices[-1] = (field.origin_x_mm + field.width_mm / 2, field.origin_y_mm + field.depth_mm / 2, 0.0)
+
+    n_cells = (ny - 1) * (nx - 1)
+    faces = np.empty((2 * n_cells + 3 * n_ring, 3), dtype=np.int64)
+    v00 = (np.arange(ny - 1)[:, None] * nx + np.arange(nx - 1)).ravel()
+    first, second = faces[:n_cells], faces[n_cells : 2 * n_cells]
+    first[:, 0], first[:, 1], first[:, 2] = v00, v00 + 1, v00 + nx + 1
+    second[:, 0], second[:, 1], second[:, 2] = v00, v00 + nx + 1, v00 + nx
+
     a = ring
     b = np.roll(ring, -1)
     a_low = n_top + np.arange(n_ring)
     b_low = np.roll(a_low, -1)
-    c = n_top + n_ring
-    walls = np.concatenate([np.column_stack([a_low, b_low, b]), np.column_stack([a_low, b, a])])
-    floor = np.column_stack([np.full(n_ring, c), b_low, a_low])
-
-    vertices = np.concatenate([top, bottom_ring, centre])
-    faces = np.concatenate([top_faces, walls, floor]).astype(np.int64)
+    walls = faces[2 * n_cells : 2 * n_cells + 2 * n_ring]
+    walls[:n_ring, 0], walls[:n_ring, 1], walls[:n_ring, 2] = a_low, b_low, b
+    walls[n_ring:, 0], walls[n_ring:, 1], walls[n_ring:, 2] = a_low, b, a
+    floor = faces[2 * n_cells + 2 * n_ring :]
+    floor[:, 0], floor[:, 1], floor[:, 2] = n_top + n_ring, b_low, a_low
     return vertices, faces
 
 

@@ -3,10 +3,29 @@
 Pure numerics; the .sl1 writer writes to a stream its caller opens. No printing.
 """
 
-from slicing.layers import Slices, slice_heightfield, slice_mesh
-from slicing.printers import PRINTERS, PrinterProfile, UnknownPrinterError, custom_printer, find_printer
-from slicing.raster import rasterise_sections, section_segments, slice_heights
-from slicing.sl1 import encode_png_grey, read_sl1, write_sl1
+from noise.lazy import lazy_attributes
+
+# Names resolve on first use: `find_printer` (emboss, design checks) needs no numba.
+__getattr__, __dir__ = lazy_attributes(
+    "slicing",
+    globals(),
+    {
+        "Slices": "slicing.layers",
+        "slice_heightfield": "slicing.layers",
+        "slice_mesh": "slicing.layers",
+        "PRINTERS": "slicing.printers",
+        "PrinterProfile": "slicing.printers",
+        "UnknownPrinterError": "slicing.printers",
+        "custom_printer": "slicing.printers",
+        "find_printer": "slicing.printers",
+        "rasterise_sections": "slicing.raster",
+        "section_segments": "slicing.raster",
+        "slice_heights": "slicing.raster",
+        "encode_png_grey": "slicing.sl1",
+        "read_sl1": "slicing.sl1",
+        "write_sl1": "slicing.sl1",
+    },
+)
 
 __all__ = [
     "PRINTERS",

@@ -403,14 +403,20 @@ def _rasterise_layer_grey(
     rows, cols = out.shape
     for r in range(rows):
         total = 0.0
+        grey = np.uint8(0)
         for c in range(cols):
-            total += acc[r, c]
-            acc[r, c] = 0.0
-            coverage = min(abs(total), 1.0)
-            if antialias:
-                out[r, c] = np.uint8(math.floor(coverage * 255.0 + 0.5))
-            else:
-                out[r, c] = np.uint8(255 if coverage >= 0.5 else 0)
+            step = acc[r, c]
+            # Most pixels lie inside or outside the section, where nothing was added:
+            # they repeat the last grey without a write to acc or a rounding.
+            if step != 0.0:
+                total += step
+                acc[r, c] = 0.0
+                coverage = min(abs(total), 1.0)
+                if antialias:
+                    grey = np.uint8(math.floor(coverage * 255.0 + 0.5))
+                else:
+                    grey = np.uint8(255 if coverage >= 0.5 else 0)
+            out[r, c] = grey
         acc[r, cols] = 0.0
         acc[r, cols + 1] = 0.0
 

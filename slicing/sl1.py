@@ -4,7 +4,9 @@ The layers come from :mod:`slicing.layers` (placement, pixel conventions). Pixel
 8-bit grey, 0 dark and 255 cured; with anti-aliasing (PrusaSlicer's ``gamma_correction =
 1``) edge pixels carry their exact area coverage.
 
-* The archive is a zip of deflated entries with no folders: ``config.ini``,
+* The archive is a zip with no folders (the ini files deflated, the layer PNGs stored: their
+  streams are deflated already, and deflating them again cost a tenth of a second on an
+  800-layer part to save 30 % of the archive): ``config.ini``,
   ``prusaslicer.ini``, then ``<job>00000.png``, ``<job>00001.png``, ...
 
 Everything here builds bytes or writes to a stream the caller opens; no file paths.
@@ -70,18 +72,30 @@ def encode_png_grey(image: np.ndarray) -> bytes:
     return _png(cols, rows, _deflate(raw))
 
 
-_ZERO_ROWS: dict[tuple[int, int], bytes] = {}
+_ZERO_RUNS: dict[int, bytes] = {}
+
+
+def _zero_run(length: int) -> bytes:
+    """Raw deflate of ``length`` zero bytes (a power of two), ending on a full flush."""
+    chunk = _ZERO_RUNS.get(length)
+    if chunk is None:
+        # Level 6 packs zeros 4.5x tighter than level 1 (2 KB per 2 MB); each run is
+        # compressed once per process, so its cost does not matter.
+        compressor = zlib.compressobj(6, zlib.DEFLATED, -15)
+        chunk = compressor.compress(bytes(length)) + compressor.flush(zlib.Z_FULL_FLUSH)
+        _ZERO_RUNS[length] = chunk
+    return chunk
 
 
 def _zero_rows(n_rows: int, row_bytes: int) -> bytes:
-    """Raw deflate of ``n_rows`` all-dark scanlines, ending on a full flush (so it can be spliced)."""
-    key = (n_rows, row_bytes)
-    chunk = _ZERO_ROWS.get(key)
-    if chunk is None:
-        compressor = zlib.compressobj(1, zlib.DEFLATED, -15)
-        chunk = compressor.compress(bytes(n_rows * row_bytes)) + compressor.flush(zlib.Z_FULL_FLUSH)
-        _ZERO_ROWS[key] = chunk
-    return chunk
+    """Raw deflate of ``n_rows`` all-dark scanlines, ending on a full flush (so it can be spliced).
+
+    Spliced from cached runs of zeros whose lengths are the powers of two in the byte
+    count, so a process compresses at most a few dozen runs however the part's rows
+    move from layer to layer.
+    """
+    length = n_rows * row_bytes
+    return b"".join(_zero_run(1 << bit) for bit in range(length.bit_length()) if length >> bit & 1)
 
 
 def _adler32_of_zeros(adler: int, length: int) -> int:
@@ -109,12 +123,12 @@ def encode_display_png(block: np.ndarray, row0: int, col0: int, shape: tuple[int
         pieces.append(_zero_rows(row0, row_bytes))
         adler = _adler32_of_zeros(adler, row0 * row_bytes)
     if height > 0:
-        raw = np.zeros((height, row_bytes), dtype=np.uint8)
-        raw[:, 1 + col0 : 1 + col0 + width] = block
-        data = raw.tobytes()
+        # Compressed and summed through the buffer protocol: no copy into bytes.
+        data = np.zeros((height, row_bytes), dtype=np.uint8)
+        data[:, 1 + col0 : 1 + col0 + width] = block
         compressor = isal_zlib.compressobj(1, isal_zlib.DEFLATED, -15)
         pieces += [compressor.compress(data), compressor.flush(isal_zlib.Z_FULL_FLUSH)]
-        adler = zlib.adler32(data, adler)
+        adler = isal_zlib.adler32(data, adler)
     tail = rows - row0 - height
     if tail > 0:
         pieces.append(_zero_rows(tail, row_bytes))
@@ -278,8 +292,8 @@ def write_sl1(stream: BinaryIO, slices: Slices, job_name: str, workers: int = 2)
             archive.writestr(info, text.encode("utf-8"))
         for k, png in encoded_layers(slices, workers):
             info = zipfile.ZipInfo(f"{job_name}{k:05d}.png", date_time=stamp)
-            info.compress_type = zipfile.ZIP_DEFLATED
-            archive.writestr(info, png, compresslevel=1)
+            info.compress_type = zipfile.ZIP_STORED
+            archive.writestr(info, png)
     return stats
 
 

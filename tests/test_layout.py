@@ -31,10 +31,10 @@ MAY_IMPORT: dict[str, set[str]] = {
 }
 """Third-party libraries and project rooms each lower room may import (the standard library always)."""
 NOISE_MODULES = {
-    "slicing": {"noise.heightfield"},
-    "render": {"noise.heightfield", "noise.hashing", "noise.frames"},
+    "slicing": {"noise.heightfield", "noise.lazy"},
+    "render": {"noise.heightfield", "noise.hashing", "noise.frames", "noise.lazy"},
 }
-"""Which parts of ``noise`` the other lower rooms may use: its types, hashing and frames, not textures."""
+"""Which parts of ``noise`` the other lower rooms may use: its types, hashing, frames and lazy exports, not textures."""
 
 
 def _modules() -> dict[str, Path]:

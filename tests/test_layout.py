@@ -34,7 +34,7 @@ NOISE_MODULES = {
     "slicing": {"noise.heightfield", "noise.lazy"},
     "render": {"noise.heightfield", "noise.hashing", "noise.frames", "noise.lazy"},
 }
-"""Which parts of ``noise`` the other lower rooms may use: its types, hashing, frames and lazy exports, not textures."""
+"""What of ``noise`` the other lower rooms may use: its types, hashing, frames, lazy exports; no textures."""
 
 
 def _modules() -> dict[str, Path]:

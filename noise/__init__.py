@@ -15,12 +15,11 @@ hashing (:mod:`noise.hashing`), tangent frames (:mod:`noise.frames`), line integ
 convolution (:mod:`noise.lic`, :mod:`noise.surface`) and spectra (:mod:`noise.spectra`).
 """
 
-from noise.lazy import lazy_attributes
+from noise.lazy import lazy_package
 
 # Names resolve on first use, so that the light modules (heightfield, hashing) load without numba.
-__getattr__, __dir__ = lazy_attributes(
-    "noise",
-    globals(),
+lazy_package(
+    __name__,
     {
         "cellular": "noise.cellular",
         "fbm_framed": "noise.framed",

@@ -3,12 +3,11 @@
 Pure numerics; the .sl1 writer writes to a stream its caller opens. No printing.
 """
 
-from noise.lazy import lazy_attributes
+from noise.lazy import lazy_package
 
 # Names resolve on first use: `find_printer` (emboss, design checks) needs no numba.
-__getattr__, __dir__ = lazy_attributes(
-    "slicing",
-    globals(),
+lazy_package(
+    __name__,
     {
         "Slices": "slicing.layers",
         "slice_heightfield": "slicing.layers",

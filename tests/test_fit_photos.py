@@ -11,6 +11,8 @@ from printapp.fit_outputs import side_by_side
 from printapp.photo import read_photo
 
 SAMPLES = Path(__file__).parent.parent / "printapp" / "samples" / "marble"
+pytestmark = pytest.mark.slow  # three whole fits, 35 s: `make test` runs them, `make test-fast` does not
+
 VEIN_PHOTOS = ("Marble006_512.jpg", "Marble020_512.jpg", "Marble021_512.webp")
 BUDGET = 90
 """The command's default."""

@@ -61,6 +61,7 @@ def test_vary_specs_and_variants():
         with_values(raw, {"relief.amplitude_um": -5}, "d")
 
 
+@pytest.mark.slow  # worker processes of a Dask cluster
 def test_six_points_give_the_same_table_on_one_and_two_workers_of_a_given_scheduler(tmp_path):
     """One cluster started here (as a user's would be), its address given to the sweep: first with
     one worker, then scaled to two; the tables are the same bytes. (The kill test below runs the
@@ -100,6 +101,7 @@ def test_six_points_give_the_same_table_on_one_and_two_workers_of_a_given_schedu
     assert charts == ["chart_relief_amplitude_um.png", "chart_relief_grey_levels.png"]
 
 
+@pytest.mark.slow  # worker processes of a Dask cluster
 def test_a_killed_sweep_resumes_without_recomputing_finished_points(tmp_path):
     design = tmp_path / "probe.toml"
     design.write_text(DESIGN.replace("rays = 2000", "rays = 30000"))

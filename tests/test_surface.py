@@ -155,3 +155,27 @@ def test_image_field_on_a_mesh_design(tmp_path):
     outcome = run_design(load_design(design), tmp_path / "out", quiet=True, render=False)
     assert outcome.passed, outcome.reasons
     assert outcome.manifest["watertight"] and outcome.manifest["genus"] == 9
+
+
+def test_surface_lic_is_second_order_in_the_step_on_a_plane():
+    """The box integral by the trapezoidal rule: a quarter-feature step is within 3 % of a 1/32-feature
+    walk (equal weights, first order, missed by 8.5 %), and halving the step divides the error by ~4."""
+    n = 121
+    axis = np.linspace(0.0, 30.0, n)
+    xx, yy = np.meshgrid(axis, axis)
+    vertices = np.column_stack([xx.ravel(), yy.ravel(), np.zeros(n * n)])
+    idx = np.arange(n * n).reshape(n, n)
+    a, b, c, d = idx[:-1, :-1].ravel(), idx[:-1, 1:].ravel(), idx[1:, :-1].ravel(), idx[1:, 1:].ravel()
+    faces = np.concatenate([np.column_stack([a, b, d]), np.column_stack([a, d, c])])
+    field = np.tile([1.0, 0.3, 0.0], (n * n, 1))
+    inner = (np.abs(xx.ravel() - 15.0) < 10.0) & (np.abs(yy.ravel() - 15.0) < 10.0)  # whole streamlines
+
+    def lic(step):
+        return lic_surface(vertices, faces, field, length=3.0, step=step, noise_scale=1.0)[inner]
+
+    reference = lic(1 / 32)
+    errors = [
+        float(np.sqrt(np.mean((lic(step) - reference) ** 2)) / reference.std()) for step in (1 / 4, 1 / 8)
+    ]
+    assert errors[0] < 0.03  # measured 2.0 %
+    assert 3.0 < errors[0] / errors[1] < 6.0  # second order: 4 (measured 4.8)

@@ -46,7 +46,7 @@ def bench_design() -> Design:
     )
 
 
-def _luma(image: np.ndarray) -> np.ndarray:
+def luma(image: np.ndarray) -> np.ndarray:
     return image @ np.array([0.2126, 0.7152, 0.0722])
 
 
@@ -61,13 +61,49 @@ def representation_error(
     noises are taken off: ``sqrt(max(mean (a - ref)^2 - var_a - var_ref, 0)) / mean ref``,
     over the object's pixels.
     """
-    a1, a2, ref = _luma(first)[mask], _luma(second)[mask], _luma(reference)[mask]
+    a1, a2, ref = luma(first)[mask], luma(second)[mask], luma(reference)[mask]
     var_a = float(np.mean((a1 - a2) ** 2)) / 2.0
     mse = float(np.mean((0.5 * (a1 + a2) - ref) ** 2))
     # The mean of the two renders has half the noise variance of one.
     bias2 = mse - var_a / 2.0 - reference_noise_var
     scale = max(float(np.mean(ref)), 1e-12)
     return float(np.sqrt(max(bias2, 0.0))) / scale, float(np.sqrt(var_a)) / scale
+
+
+def render_shot(
+    design: Design,
+    target: Any,
+    surface: Any,
+    framed: Any,
+    scale: float,
+    spp: int,
+    seed: int,
+    size: tuple[int, int],
+    *,
+    coverage: bool = False,
+) -> np.ndarray:
+    """``target`` (a mesh; with ``surface`` its BRDF, else its own geometry) as the preview camera sees
+    ``framed`` (the relief's mesh) from ``scale`` times the preview's distance, in linear RGB."""
+    from render.mitsuba_adapter import PREVIEW_FOV_DEG, render_resin_mesh
+
+    r = design.render
+    return render_resin_mesh(
+        np.asarray(target.vertices),
+        np.asarray(target.faces),
+        body_albedo=design.material.body_albedo,
+        refractive_index=design.material.refractive_index,
+        width_px=size[0],
+        height_px=size[1],
+        spp=spp,
+        seed=seed,
+        elevation_rad=r.elevation_rad,
+        azimuth_rad=r.azimuth_rad,
+        fov_deg=PREVIEW_FOV_DEG,
+        surface=surface,
+        distance_scale=scale,
+        frame_vertices=np.asarray(framed.vertices),
+        coverage=coverage,
+    )
 
 
 def render_chart(rows: list[dict[str, Any]], path: Path) -> None:
@@ -140,7 +176,7 @@ def bench_render(repeats: int) -> StageResult:
     """Compact BRDF, traced table and geometry of one relief: time against image error by distance."""
     from printapp.relief import build_relief
     from printapp.rendering import base_shape, predict_for_design
-    from render.mitsuba_adapter import PREVIEW_FOV_DEG, Framing, choose_variant, render_resin_mesh
+    from render.mitsuba_adapter import PREVIEW_FOV_DEG, Framing, choose_variant
     from render.representation import GEOMETRY_FROM_FEATURES_PER_PIXEL, compact_surface, table_surface
 
     choose_variant()
@@ -167,29 +203,12 @@ def bench_render(repeats: int) -> StageResult:
     base = base_shape(design, relief)
     model = compact_surface(predicted.fit.model, design.material.body_albedo, grey)
     shapes = {"model": (base, model), "table": (base, table), "geometry": (mesh, None)}
-    r = design.render
 
     def shot(
         mode: str, scale: float, spp: int, seed: int, coverage: bool = False, size: tuple[int, int] = _SIZE
     ) -> np.ndarray:
         target, surface = shapes[mode]
-        return render_resin_mesh(
-            np.asarray(target.vertices),
-            np.asarray(target.faces),
-            body_albedo=design.material.body_albedo,
-            refractive_index=design.material.refractive_index,
-            width_px=size[0],
-            height_px=size[1],
-            spp=spp,
-            seed=seed,
-            elevation_rad=r.elevation_rad,
-            azimuth_rad=r.azimuth_rad,
-            fov_deg=PREVIEW_FOV_DEG,
-            surface=surface,
-            distance_scale=scale,
-            frame_vertices=np.asarray(mesh.vertices),
-            coverage=coverage,
-        )
+        return render_shot(design, target, surface, mesh, scale, spp, seed, size, coverage=coverage)
 
     rows = []
     views = [("distance", scale, _SIZE) for scale in _DISTANCES] + [
@@ -211,7 +230,7 @@ def bench_render(repeats: int) -> StageResult:
                 times.append(time.perf_counter() - start)
             renders[mode] = (images[0], images[1], times)
         g1, g2, _ = renders["geometry"]
-        g_noise_var = float(np.mean((_luma(g1)[mask] - _luma(g2)[mask]) ** 2)) / 2.0
+        g_noise_var = float(np.mean((luma(g1)[mask] - luma(g2)[mask]) ** 2)) / 2.0
         reference_noise_var = g_noise_var * _SPP / _REFERENCE_SPP
         for mode, (first, second, times) in renders.items():
             error, noise = representation_error(first, second, reference, reference_noise_var, mask)

@@ -1,0 +1,177 @@
+"""``printapp bench scale``: the compact BRDF against geometry as the relief grows, at printer pitch.
+
+Issue #20, item 7: where users meet the representation choice is a whole part or a large tile
+at the printer's pixel pitch (millions of triangles), not only the demo's 20 mm tile. Square
+tiles of the same fine fBm relief, 20 mm (the demo's size) to 60 mm, sampled at the printer's
+pitch, are each rendered whole in the same frame as (a) their compact BRDF on the flat base and
+(c) their displaced geometry, and compared with (c) at many samples. As the tile grows its
+features shrink on screen and its triangles multiply: the chart gives the compact model's
+speed-up to the same noise, and its image error, against the relief's size.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from printapp.bench.render import luma, render_shot, representation_error
+from printapp.bench.timing import StageResult
+
+if TYPE_CHECKING:
+    from printapp.design import Design
+
+_SIZES_MM = (20.0, 40.0, 60.0)
+_SPP = 64
+_REFERENCE_SPP = 1024
+_IMAGE = (480, 360)
+_FEATURE_MM = 0.4
+"""fBm of two octaves from 0.4 mm: its finest octave (0.2 mm) spans four printer pixels."""
+
+
+def scale_design(size_mm: float) -> Design:
+    """A ``size_mm`` square tile of fine fBm at the SL1's pixel pitch (its default relief pitch)."""
+    from printapp.design import Design
+
+    return Design.model_validate(
+        {
+            "name": f"bench scale tile {size_mm:g} mm",
+            "base": {"shape": "tile", "width_mm": size_mm, "depth_mm": size_mm, "thickness_mm": 2.0},
+            "texture": {"kind": "fbm", "feature_size_mm": _FEATURE_MM, "octaves": 2, "seed": 3},
+            "relief": {"amplitude_mm": 0.06},
+            "brdf": {"rays": 200_000},
+            "render": {"width_px": _IMAGE[0], "height_px": _IMAGE[1], "spp": _SPP},
+        }
+    )
+
+
+def _one_size(size_mm: float, repeats: int) -> list[dict[str, Any]]:
+    """The rows of one tile size: geometry and compact model, each against the geometry reference."""
+    from printapp.relief import build_relief
+    from printapp.rendering import base_shape, predict_for_design
+    from render.mitsuba_adapter import PREVIEW_FOV_DEG, Framing
+    from render.representation import compact_surface
+
+    design = scale_design(size_mm)
+    start = time.perf_counter()
+    relief = build_relief(design)
+    build_s = time.perf_counter() - start
+    mesh = relief.mesh
+    start = time.perf_counter()
+    predicted = predict_for_design(design, relief.patch)
+    brdf_s = time.perf_counter() - start
+    grey = float(np.dot(design.material.body_albedo, [0.2126, 0.7152, 0.0722]))
+    shapes = {
+        "model": (
+            base_shape(design, relief),
+            compact_surface(predicted.fit.model, design.material.body_albedo, grey),
+        ),
+        "geometry": (mesh, None),
+    }
+
+    def shot(mode: str, spp: int, seed: int, coverage: bool = False) -> np.ndarray:
+        target, surface = shapes[mode]
+        return render_shot(design, target, surface, mesh, 1.0, spp, seed, _IMAGE, coverage=coverage)
+
+    frame = Framing.of(np.asarray(mesh.vertices), _IMAGE[0], _IMAGE[1], PREVIEW_FOV_DEG, 1.0)
+    mask = shot("model", 1, 0, coverage=True)
+    start = time.perf_counter()
+    reference = shot("geometry", _REFERENCE_SPP, 1000)
+    reference_s = time.perf_counter() - start
+    renders = {}
+    for mode in ("geometry", "model"):
+        times, images = [], []
+        for seed in range(max(2, min(repeats, 3))):
+            start = time.perf_counter()
+            images.append(shot(mode, _SPP, seed))
+            times.append(time.perf_counter() - start)
+        renders[mode] = (images[0], images[1], float(np.median(times)))
+    g1, g2, _ = renders["geometry"]
+    geometry_var = float(np.mean((luma(g1)[mask] - luma(g2)[mask]) ** 2)) / 2.0
+    rows = []
+    for mode, (first, second, median_s) in renders.items():
+        reference_var = geometry_var * _SPP / _REFERENCE_SPP
+        error, noise = representation_error(first, second, reference, reference_var, mask)
+        rows.append(
+            {
+                "relief_mm": size_mm,
+                "triangles": len(mesh.faces),
+                "pixels_per_feature": round(_FEATURE_MM / 2.0 / frame.pixel_footprint_mm, 3),
+                "mode": mode,
+                "median_s": round(median_s, 3),
+                "noise": round(noise, 4),
+                "error_vs_geometry": round(error, 4),
+                # As in `bench render`: scaled by the samples 2 % needs (noise ~ 1/sqrt(spp)).
+                "time_to_2pct_s": round(median_s * max(1.0, (noise / 0.02) ** 2), 2),
+                "relief_build_s": round(build_s, 2),
+                "brdf_fit_s": round(brdf_s, 2),
+                "reference_s": round(reference_s, 2),
+            }
+        )
+    return rows
+
+
+def bench_scale(repeats: int) -> StageResult:
+    """Compact BRDF against geometry for tiles of growing size: speed to 2 % noise and image error."""
+    from render.mitsuba_adapter import choose_variant
+
+    choose_variant()
+    rows = [row for size_mm in _SIZES_MM for row in _one_size(size_mm, repeats)]
+    by = {(row["relief_mm"], row["mode"]): row for row in rows}
+    ratios = {
+        size: by[(size, "geometry")]["time_to_2pct_s"] / by[(size, "model")]["time_to_2pct_s"]
+        for size in _SIZES_MM
+    }
+    for row in rows:
+        if row["mode"] == "model":
+            row["faster_to_2pct_than_geometry"] = round(ratios[row["relief_mm"]], 1)
+    notes = [
+        f"tiles of fBm ({_FEATURE_MM:g} mm, two octaves, 60 um deep) at the SL1's pitch, each whole in "
+        f"a {_IMAGE[0]}x{_IMAGE[1]} frame; reference: geometry at {_REFERENCE_SPP} spp; both "
+        f"representations at {_SPP} spp with two seeds; error and noise as in `bench render` "
+        "(relative to the mean, over the tile's pixels); pixels per feature counts the finest "
+        "octave; times include building the scene (the geometry's BVH), so time to 2 % is an upper "
+        "bound for both",
+        *(
+            f"{size:g} mm ({by[(size, 'geometry')]['triangles']:,} triangles): model "
+            f"{ratios[size]:.1f}x faster to 2 % noise than geometry, "
+            f"image error {by[(size, 'model')]['error_vs_geometry']:.1%}"
+            for size in _SIZES_MM
+        ),
+    ]
+
+    def chart(path: Path) -> None:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+
+        fig, (left, middle, right) = plt.subplots(1, 3, figsize=(14, 4), dpi=110)
+        for mode, marker in (("geometry", "^"), ("model", "o")):
+            sel = [by[(size, mode)] for size in _SIZES_MM]
+            left.plot(_SIZES_MM, [row["time_to_2pct_s"] for row in sel], marker=marker, label=mode)
+            right.plot(_SIZES_MM, [row["error_vs_geometry"] * 100 for row in sel], marker=marker, label=mode)
+        left.set_yscale("log")
+        left.set_ylabel("time to 2 % noise (s)")
+        middle.plot(_SIZES_MM, [ratios[size] for size in _SIZES_MM], marker="o", color="C2")
+        middle.axhline(20.0, color="grey", ls=":", lw=1, label="issue #20's target, 20x")
+        middle.set_ylabel("compact model faster than geometry, to 2 % noise (x)")
+        middle.legend(fontsize=7)
+        right.axhline(5.0, color="grey", ls=":", lw=1, label="5 % image error")
+        right.set_ylabel("image error vs the geometry reference (%)")
+        for ax in (left, middle, right):
+            ax.set_xlabel("relief size (mm square, at printer pitch)")
+            ax.set_xticks(_SIZES_MM)
+        left.legend(fontsize=7)
+        right.legend(fontsize=7)
+        fig.suptitle(
+            f"compact BRDF against geometry as the relief grows ({_IMAGE[0]}x{_IMAGE[1]} frame)", fontsize=10
+        )
+        fig.tight_layout()
+        fig.savefig(path)
+        plt.close(fig)
+
+    description = "compact BRDF against geometry by relief size, at printer pitch"
+    return StageResult("scale", description, rows, chart, notes)

@@ -14,11 +14,11 @@ demo: $(STAMP) llvm
 
 # Spread over the cores (pytest-xdist): most tests are single-threaded numpy and numba.
 test: $(STAMP) llvm chromium
-	$(BIN)/python -m pytest -q -n auto
+	$(BIN)/python -m pytest -q -n auto --dist loadgroup
 
 # The edit-test loop: everything but the end-to-end and heavy tests (marked slow).
 test-fast: $(STAMP) llvm
-	$(BIN)/python -m pytest -q -n auto -m "not slow"
+	$(BIN)/python -m pytest -q -n auto --dist loadgroup -m "not slow"
 
 lint: $(STAMP)
 	$(BIN)/ruff check .

@@ -10,7 +10,8 @@ medians over the repeats, ratios of medians from the same run:
 * ``printapp emboss`` of a 1024^2 16-bit height map at its own resolution beside Blender's
   Displace workflow on the same map (``printapp/bench/peers/blender_displace.py``);
 * ``printapp demo`` warm, and its first run (numba compiling into an empty cache, as after
-  a fresh install without ``printapp warmup``; Mitsuba's own cache stays warm);
+  a fresh install without ``printapp warmup``; Mitsuba's own cache stays warm), and
+  ``printapp warmup`` into an empty cache followed by the first demo (what ``make demo`` does);
 * ``printapp design`` of every example in ``./examples`` (run from a checkout), warm
   (verification's convergence included; a design for ``printapp solve`` is timed as the
   design it solved to, ``examples/solved/``; one whose verification fails, exit 3, is timed
@@ -126,12 +127,24 @@ def bench_commands(repeats: int) -> StageResult:
         for _ in range(max(1, reps // 2)):
             with tempfile.TemporaryDirectory() as cache:
                 cold.append(_seconds(demo, env={**os.environ, "NUMBA_CACHE_DIR": cache}))
+        # What `make demo` does on a fresh install: `printapp warmup`, then the first demo.
+        warmup, after = [], []
+        for _ in range(max(1, reps // 2)):
+            with tempfile.TemporaryDirectory() as cache:
+                env = {**os.environ, "NUMBA_CACHE_DIR": cache}
+                warmup.append(_seconds([*PRINTAPP, "warmup", "--quiet"], env=env))
+                after.append(_seconds(demo, env=env))
         rows.append({"command": "demo, warm", "printapp_s": round(warm, 3)})
         rows.append(
             {
                 "command": "demo, first run (empty numba cache)",
                 "printapp_s": round(statistics.median(cold), 3),
             }
+        )
+        warmup_s = round(statistics.median(warmup), 3)
+        rows.append({"command": "warmup (empty numba cache)", "printapp_s": warmup_s})
+        rows.append(
+            {"command": "demo, first run after warmup", "printapp_s": round(statistics.median(after), 3)}
         )
         example_files = sorted((Path.cwd() / "examples").glob("*.toml"))
         if not example_files:

@@ -11,6 +11,7 @@ SHARED_FIXTURES = ("demo_runs", "vein_fits", "marble_fits", "cylinder_reliefs", 
 """Module fixtures of more than a second or two (see ``--durations``)."""
 
 
+@pytest.hookimpl(tryfirst=True)  # before xdist's own hook, which reads the groups
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     for item in items:
         for name in SHARED_FIXTURES:

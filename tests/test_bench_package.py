@@ -142,7 +142,7 @@ def test_every_stage_has_a_module_named_after_it():
     names = [key.value for key in stages.keys]
     assert names == [
         *("noise", "frames", "lic", "slice", "mesh", "brdf"),
-        *("pitch", "adaptive", "mie", "pipeline", "fit", "render", "translucency", "commands"),
+        *("pitch", "adaptive", "mie", "pipeline", "fit", "render", "scale", "translucency", "commands"),
         *("solve", "sweep"),
     ]
     for name in names:

@@ -163,7 +163,9 @@ class SampleRenderer:
             ray, weight = sensor.sample_ray_differential(0.0, 0.0, position, mi.Point2f(0.5, 0.5))
             spectrum, _, aovs = integrator.sample(scene, sampler, ray, None, True)
             if aov:
-                # albedo (3), normal (3), and whether the ray hit (depth > 0)
+                # albedo (3), normal (3), and whether the ray hit (depth > 0). Evaluated together:
+                # converting them one by one ran (and compiled) the whole trace once per channel.
+                dr.eval(*aovs[:7])
                 stacked = [np.array(a, dtype=np.float64) for a in aovs[:6]]
                 stacked.append((np.array(aovs[6], dtype=np.float64) > 0.0).astype(np.float64))
                 values = np.stack(stacked, axis=-1)

@@ -427,6 +427,7 @@ def test_texture_from_merges_the_fragment_under_the_designs_keys(tmp_path):
         load_design(tmp_path / "g.toml")
 
 
+@pytest.mark.slow  # a whole fit and design run
 def test_the_fitted_marble_example_prints(tmp_path):
     from printapp.pipeline import run_design
 

@@ -41,6 +41,7 @@ def relief_statistics(design, magnification):
     return r.sq_um, r.sdq, lateral(heights, pitch, pitch).sal_um
 
 
+@pytest.mark.slow  # a whole fit and design run
 def test_the_al3d_surface_prints_as_a_look_alike_with_its_sq_sdq_and_sal(tmp_path):
     out, metrics = tmp_path / "surface.toml", tmp_path / "surface.json"
     result = runner.invoke(

@@ -26,9 +26,11 @@ class StageResult:
     extra: dict[str, Any] = field(default_factory=dict)
 
 
-def median_seconds(fn: Callable[[], object], repeats: int) -> tuple[float, list[float]]:
-    """Median wall time of ``fn`` over ``repeats`` calls, after one untimed warm-up call."""
-    fn()
+def median_seconds(fn: Callable[[], object], repeats: int, *, warm: bool = True) -> tuple[float, list[float]]:
+    """Median wall time of ``fn`` over ``repeats`` calls, after one untimed warm-up call (unless
+    ``warm`` is false: the caller has compiled and warmed what ``fn`` runs already)."""
+    if warm:
+        fn()
     times = []
     for _ in range(repeats):
         start = time.perf_counter()

@@ -90,7 +90,10 @@ def _ndf(distribution: str, mx, my, mz, au: float, av: float) -> np.ndarray:
     return np.exp(-(mx * mx / (au * au) + my * my / (av * av)) / mz2) / (math.pi * au * av * mz2 * mz2)
 
 
-def _smith_lambda(distribution: str, wx, wy, wz, au: float, av: float) -> np.ndarray:
+def smith_lambda(distribution: str, wx, wy, wz, au: float, av: float) -> np.ndarray:
+    """Smith's Lambda of direction ``(wx, wy, wz)`` (local frame) for an anisotropic GGX or Beckmann
+    distribution (Heitz 2014, "Understanding the masking-shadowing function"; Beckmann: eq. 86);
+    ``G1 = 1 / (1 + Lambda)``."""
     proj = np.sqrt(au * au * wx * wx + av * av * wy * wy)
     wz = np.maximum(wz, 1e-12)
     if distribution == "ggx":
@@ -113,9 +116,7 @@ def _lobe(distribution: str, au: float, av: float, azimuth: float, ior: float, w
     ox, oy, oz = _to_local(wo, azimuth)
     d = _ndf(distribution, hx, hy, hz, au, av)
     g2 = 1.0 / (
-        1.0
-        + _smith_lambda(distribution, ix, iy, iz, au, av)
-        + _smith_lambda(distribution, ox, oy, oz, au, av)
+        1.0 + smith_lambda(distribution, ix, iy, iz, au, av) + smith_lambda(distribution, ox, oy, oz, au, av)
     )
     f_h = fresnel_dielectric(np.sum(wi * hv, axis=-1), ior)
     valid = (cos_i > 0.0) & (cos_o > 0.0) & (hz > 0.0)
@@ -193,7 +194,7 @@ def bin_average(
     return out
 
 
-def _standard_slopes(distribution: str, n_side: int) -> tuple[np.ndarray, np.ndarray]:
+def standard_slopes(distribution: str, n_side: int) -> tuple[np.ndarray, np.ndarray]:
     """Stratified slopes of the distribution with alpha = 1 (projected-area density P22)."""
     from scipy.special import ndtri
 
@@ -210,7 +211,7 @@ def _standard_slopes(distribution: str, n_side: int) -> tuple[np.ndarray, np.nda
 
 @functools.lru_cache(maxsize=8)
 def _standard_slopes_cached(distribution: str, n_side: int) -> tuple[np.ndarray, np.ndarray]:
-    return _standard_slopes(distribution, n_side)
+    return standard_slopes(distribution, n_side)
 
 
 @njit(cache=True, inline="always")

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from render.brdf_fit import table_noise
-from render.brdf_model import _smith_lambda
+from render.brdf_model import smith_lambda
 from render.gonio import direction_from_angles, estimate_brdf, lit_window, projected_solid_angle
 from render.tabulated_bins import model_bins, table_error
 from render.tabulated_ndf import (
@@ -80,7 +80,7 @@ def test_masking_from_the_table_is_beckmanns_closed_form_for_gaussian_slopes(the
     ndf = ndf_from_slopes(*rng.normal(0.0, alpha / math.sqrt(2), (2, 1_000_000)))
     for phi in (0.0, 1.0):
         w = direction_from_angles(math.radians(theta_deg), phi)
-        expected = float(_smith_lambda("beckmann", w[0, 0], w[0, 1], w[0, 2], alpha, alpha))
+        expected = float(smith_lambda("beckmann", w[0, 0], w[0, 1], w[0, 2], alpha, alpha))
         assert float(ndf.smith_lambda(w)[0]) == pytest.approx(expected, rel=0.03, abs=2e-4)
 
 

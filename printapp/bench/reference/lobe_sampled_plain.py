@@ -1,5 +1,6 @@
 """The importance-sampled bin averages of one microfacet lobe, in plain numpy: the reference that
-``render.brdf_model``'s numba kernel is checked against (it was the production code before it).
+``render.brdf_model``'s numba kernel is checked against (it was the production code before it;
+it shares the numpy Smith Lambda and the stratified slopes, which the kernel does not use).
 
 Walter et al. 2007, eqs. 38-41: facet slopes drawn stratified from the lobe's slope
 distribution, ``wi`` reflected off each facet, weight ``F G2 (wi . m) / (cos(theta_i) cos(theta_m))``.
@@ -8,31 +9,10 @@ distribution, ``wi`` reflected off each facet, weight ``F G2 (wi . m) / (cos(the
 import math
 
 import numpy as np
-from scipy.special import erf, ndtri
 
+from render.brdf_model import smith_lambda, standard_slopes
 from render.fresnel import fresnel_dielectric
 from render.gonio import projected_solid_angle
-
-
-def standard_slopes(distribution: str, n_side: int) -> tuple[np.ndarray, np.ndarray]:
-    u = (np.arange(n_side) + 0.5) / n_side
-    u1, u2 = np.meshgrid(u, u, indexing="ij")
-    if distribution == "beckmann":
-        return ndtri(u1.ravel()) / math.sqrt(2.0), ndtri(u2.ravel()) / math.sqrt(2.0)
-    r = np.sqrt(u1 / (1.0 - u1)).ravel()
-    phi = 2.0 * math.pi * u2.ravel()
-    return r * np.cos(phi), r * np.sin(phi)
-
-
-def smith_lambda(distribution: str, wx, wy, wz, au: float, av: float) -> np.ndarray:
-    proj = np.sqrt(au * au * wx * wx + av * av * wy * wy)
-    wz = np.maximum(wz, 1e-12)
-    if distribution == "ggx":
-        return 0.5 * (np.sqrt(1.0 + (proj / wz) ** 2) - 1.0)
-    a = wz / np.maximum(proj, 1e-300)
-    with np.errstate(over="ignore", invalid="ignore"):
-        lam = 0.5 * (erf(a) - 1.0) + np.exp(-a * a) / (2.0 * a * math.sqrt(math.pi))
-    return np.where(a > 26.0, 0.0, lam)
 
 
 def lobe_sampled_plain(distribution, au, av, azimuth, ior, wis, theta_edges, phi_edges, n_side):

@@ -214,3 +214,21 @@ def test_importing_the_rooms_does_not_pull_in_heavy_libraries():
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "[]"
+
+
+def test_light_modules_load_without_numba_or_scipy():
+    """What `printapp emboss` and the design schema import stays light (issue #20): the packages
+    resolve their re-exported kernels on first use (noise/lazy.py), and a name that is also a
+    submodule's (``noise.veins``) is still the function once that submodule has been imported."""
+    code = (
+        "import sys\n"
+        "import noise.heightfield, printapp.exporters, printapp.slab, printapp.emboss, printapp.topography\n"
+        "from slicing import find_printer\n"
+        "assert 'numba' not in sys.modules and 'scipy' not in sys.modules, sorted(sys.modules)\n"
+        "import noise.veins, noise\n"
+        "assert callable(noise.veins) and callable(noise.cellular) and 'numba' in sys.modules\n"
+    )
+    result = subprocess.run(
+        [sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120
+    )
+    assert result.returncode == 0, result.stderr[-2000:]

@@ -57,7 +57,11 @@ def brdf_figure_png(
     rows = _nearest_directions(np.asarray(table.wi), directions_deg)
     wi = np.asarray(table.wi)[rows]
     traced = np.asarray(table.f)[rows]
-    fitted = model_bins(appearance.fit.model, wi, table.theta_o_edges, table.phi_o_edges)
+    model_f = getattr(appearance, "model_f", None)
+    if model_f is not None:
+        fitted = np.asarray(model_f)[rows]
+    else:
+        fitted = model_bins(appearance.fit.model, wi, table.theta_o_edges, table.phi_o_edges)
     # The scale follows the traced table (what is predicted) where its bins are reliable (under 50 %
     # standard error: the tiny bins round the zenith catch few rays). A mirror spike fills a bin or
     # two at hundreds per steradian: it saturates, so that the glossy lobe keeps its shades.

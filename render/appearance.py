@@ -42,7 +42,7 @@ from render.gonio import (
     table_lobe_errors,
 )
 from render.representation import tolerance_for
-from render.tabulated_bins import table_error
+from render.tabulated_bins import model_bins, table_error
 from render.tabulated_ndf import tabulate_ndf, tabulated_model
 
 BLACK_GLASS_INDEX = 1.567
@@ -126,6 +126,8 @@ class Appearance:
     fit: FitResult
     metrics: dict[str, Any] = field(default_factory=dict)
     analytic: FitResult | None = None
+    model_f: np.ndarray | None = None
+    """The compact model's bin averages at the table's incident directions (1/sr), where computed."""
 
 
 def glossmeter(
@@ -284,7 +286,11 @@ def predict_appearance(
     )
     omega = table.projected_solid_angle
     noise = table_noise(table.f, omega, table.stderr)
-    error, used = table_error(compact, wi, table.f, table.stderr, table.theta_o_edges, table.phi_o_edges)
+    # The model's bins at the table's incident directions: its error here, and the report's maps.
+    model_f = model_bins(compact, wi, table.theta_o_edges, table.phi_o_edges)
+    error, used = table_error(
+        compact, wi, table.f, table.stderr, table.theta_o_edges, table.phi_o_edges, f_model=model_f
+    )
     fit = FitResult(compact, error, used, noise)
     representation, warnings = model_or_table(fit)
     # The highlight's shape from the surface-reflection lobe at the most normal incidence.
@@ -325,7 +331,9 @@ def predict_appearance(
         "lobe_error": [_finite(float(e)) for e in lobe_errors],
         "lost_fraction": float(np.max(np.concatenate([table.lost, gloss_table.lost]))),
     }
-    return Appearance(table=table, gloss_table=gloss_table, fit=fit, metrics=metrics, analytic=analytic)
+    return Appearance(
+        table=table, gloss_table=gloss_table, fit=fit, metrics=metrics, analytic=analytic, model_f=model_f
+    )
 
 
 def model_or_table(fit: FitResult) -> tuple[dict[str, Any], list[str]]:

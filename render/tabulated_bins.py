@@ -117,12 +117,17 @@ def table_error(
     stderr: np.ndarray | None,
     theta_edges: np.ndarray,
     phi_edges: np.ndarray,
+    f_model: np.ndarray | None = None,
 ) -> tuple[float, int]:
-    """:func:`render.brdf_fit.relative_error` of a model against a table (mirror bins pooled for a spike)."""
+    """:func:`render.brdf_fit.relative_error` of a model against a table (mirror bins pooled for a spike).
+
+    ``f_model``: the model's bin averages (:func:`model_bins`) when the caller has them already.
+    """
     from render.brdf_fit import _relative_error_merged, relative_error
     from render.gonio import projected_solid_angle
 
-    f_model = model_bins(model, wi, theta_edges, phi_edges)
+    if f_model is None:
+        f_model = model_bins(model, wi, theta_edges, phi_edges)
     omega = projected_solid_angle(theta_edges, phi_edges)
     if model.spike_weight > 0.0:
         return _relative_error_merged(

@@ -24,6 +24,7 @@ exactly, through the same code as a design's relief.
 from __future__ import annotations
 
 import math
+from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from typing import Any
 
@@ -156,8 +157,12 @@ def _peak_period(lum: np.ndarray, across: float) -> float:
     return float(min(max(1.0 / mean, 2.0), 4.0 * max(lum.shape)))
 
 
-class Model:
-    """A model: its searched parameters, discrete choices, field and design texture (lengths in px)."""
+class Model(ABC):
+    """A model: its searched parameters, discrete choices, field and design texture (lengths in px).
+
+    Abstract: each kind (:class:`FBM`, :class:`Turbulence`, :class:`Marble`, :class:`Veined`)
+    says how it draws its field and which ``[texture]`` prints it.
+    """
 
     name = ""
 
@@ -186,12 +191,13 @@ class Model:
         """The middle of the search box: what an image with nothing to fit (a constant one) gets."""
         return self.decode(np.full(len(self.params()), 0.5), self.choices()[0])
 
+    @abstractmethod
     def field(self, values: dict[str, Any], grid: Grid, sampler, seed: int) -> np.ndarray:
-        raise NotImplementedError
+        """The model's grey field on ``grid`` for parameter ``values``."""
 
+    @abstractmethod
     def texture_fields(self, values: dict[str, Any]) -> dict[str, Any]:
         """``[texture]`` fields (lengths in analysed px) of the kind that prints this model."""
-        raise NotImplementedError
 
 
 def _octave_sum(

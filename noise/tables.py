@@ -79,6 +79,22 @@ def exact_sampler(seed: int, impulses: int = 30, cell_seed: str = "hash") -> Sam
     return Sampler(seed, impulses, cell_seed)
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _lookup(table: np.ndarray, mask: np.int64, fx: float, fy: float) -> float:
+    """Bilinear value of the periodic table at (fx, fy) in table cells (the side a power of two)."""
+    x0 = math.floor(fx)
+    y0 = math.floor(fy)
+    wx = fx - x0
+    wy = fy - y0
+    ix = np.int64(x0) & mask
+    iy = np.int64(y0) & mask
+    jx = (ix + 1) & mask
+    jy = (iy + 1) & mask
+    bottom = table[iy, ix] * (1.0 - wx) + table[iy, jx] * wx
+    top = table[jy, ix] * (1.0 - wx) + table[jy, jx] * wx
+    return bottom * (1.0 - wy) + top * wy
+
+
 @njit(cache=True, nogil=True)
 def _bilinear(
     table: np.ndarray,
@@ -91,19 +107,9 @@ def _bilinear(
 ) -> None:
     mask = np.int64(table.shape[0] - 1)  # the side is a power of two: wrapping is a mask
     for k in range(points.shape[0]):
-        fx = (points[k, 0] * scale + sx) * inv_step
-        fy = (points[k, 1] * scale + sy) * inv_step
-        x0 = math.floor(fx)
-        y0 = math.floor(fy)
-        wx = fx - x0
-        wy = fy - y0
-        ix = np.int64(x0) & mask
-        iy = np.int64(y0) & mask
-        jx = (ix + 1) & mask
-        jy = (iy + 1) & mask
-        bottom = table[iy, ix] * (1.0 - wx) + table[iy, jx] * wx
-        top = table[jy, ix] * (1.0 - wx) + table[jy, jx] * wx
-        out[k] = bottom * (1.0 - wy) + top * wy
+        out[k] = _lookup(
+            table, mask, (points[k, 0] * scale + sx) * inv_step, (points[k, 1] * scale + sy) * inv_step
+        )
 
 
 @njit(cache=True, nogil=True)
@@ -121,19 +127,12 @@ def _octave_sum(
     for k in range(points.shape[0]):
         total = 0.0
         for i in range(scales.size):
-            fx = (points[k, 0] * scales[i] + shifts[i, 0]) * inv_step
-            fy = (points[k, 1] * scales[i] + shifts[i, 1]) * inv_step
-            x0 = math.floor(fx)
-            y0 = math.floor(fy)
-            wx = fx - x0
-            wy = fy - y0
-            ix = np.int64(x0) & mask
-            iy = np.int64(y0) & mask
-            jx = (ix + 1) & mask
-            jy = (iy + 1) & mask
-            bottom = table[iy, ix] * (1.0 - wx) + table[iy, jx] * wx
-            top = table[jy, ix] * (1.0 - wx) + table[jy, jx] * wx
-            v = bottom * (1.0 - wy) + top * wy
+            v = _lookup(
+                table,
+                mask,
+                (points[k, 0] * scales[i] + shifts[i, 0]) * inv_step,
+                (points[k, 1] * scales[i] + shifts[i, 1]) * inv_step,
+            )
             total += weights[i] * (abs(v) if absolute else v)
         out[k] = total
 

@@ -98,23 +98,13 @@ def traced_metrics(design: Design, field: Any) -> dict[str, Any]:
     """The traced gloss, haze and highlight ``printapp design`` reports for ``field``, without the
     compact model's fit (:func:`render.traced.traced_gloss`; the whole prediction when the design
     asks for a lobe error, whose ray budget only the whole table sets)."""
-    from printapp.brdf import grey_albedo
+    from printapp.rendering import predict_for_design, tracer_options
 
     if design.brdf.lobe_error is not None:
-        from printapp.rendering import predict_for_design
-
         return predict_for_design(design, field).metrics
     from render.traced import traced_gloss
 
-    return traced_gloss(
-        field,
-        ior=design.material.refractive_index,
-        body_albedo=grey_albedo(design.material.body_albedo),
-        rays=design.brdf.rays,
-        n_theta=design.brdf.theta_bins,
-        n_phi=design.brdf.phi_bins,
-        seed=design.brdf.seed,
-    )
+    return traced_gloss(field, **tracer_options(design))
 
 
 def evaluate_design(

@@ -96,18 +96,26 @@ def noise_summary(preview: Preview) -> tuple[bool, str]:
     return False, line
 
 
+def tracer_options(design: Design) -> dict[str, Any]:
+    """The traced BRDF's settings a design fixes: the resin's index, the body's grey albedo, the
+    rays, the bins and the seed (shared by the full prediction and the glossmeter alone)."""
+    return {
+        "ior": design.material.refractive_index,
+        "body_albedo": grey_albedo(design.material.body_albedo),
+        "rays": design.brdf.rays,
+        "n_theta": design.brdf.theta_bins,
+        "n_phi": design.brdf.phi_bins,
+        "seed": design.brdf.seed,
+    }
+
+
 def predict_for_design(design: Design, field: HeightField) -> Appearance:
     """The predicted appearance (:func:`render.appearance.predict_appearance`) of a design's relief."""
     from render.appearance import predict_appearance
 
     return predict_appearance(
         field,
-        ior=design.material.refractive_index,
-        body_albedo=grey_albedo(design.material.body_albedo),
-        rays=design.brdf.rays,
-        n_theta=design.brdf.theta_bins,
-        n_phi=design.brdf.phi_bins,
-        seed=design.brdf.seed,
+        **tracer_options(design),
         distribution=design.brdf.distribution,
         lobe_error_target=design.brdf.lobe_error,
     )

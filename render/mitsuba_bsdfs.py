@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from render.mitsuba_shared import fresnel_dr, glossy_or_diffuse_sample, in_world_x_frame
+from render.mitsuba_shared import fresnel_dr, glossy_or_diffuse_sample, in_world_x_frame, lobe_or_body_sample
 
 _registered: dict[str, Any] = {}
 
@@ -430,17 +430,10 @@ def _register_plugins() -> None:
             pick_mirror = mi.Bool(sample1 < p)
             wo_body = mi.warp.square_to_cosine_hemisphere(sample2)
             wo = dr.select(pick_mirror, mi.reflect(si.wi), wo_body)
-            bs = mi.BSDFSample3f()
-            bs.wo = wo
-            bs.eta = 1.0
-            bs.sampled_component = dr.select(pick_mirror, mi.UInt32(0), mi.UInt32(1))
-            bs.sampled_type = dr.select(
-                pick_mirror,
-                mi.UInt32(+mi.BSDFFlags.DeltaReflection),
-                mi.UInt32(+mi.BSDFFlags.DiffuseReflection),
-            )
             body, body_pdf = self._body(ctx, si, wo_body, active)
-            bs.pdf = dr.select(pick_mirror, p, body_pdf)
+            bs = lobe_or_body_sample(
+                wo, pick_mirror, mi.BSDFFlags.DeltaReflection, dr.select(pick_mirror, p, body_pdf)
+            )
             mirror_weight = mi.Spectrum(fresnel(cos_i, self.eta) / max(p, 1e-12))
             weight = dr.select(pick_mirror, mirror_weight, body / dr.maximum(body_pdf, 1e-12))
             return bs, dr.select(active & (bs.pdf > 0), weight, 0.0)

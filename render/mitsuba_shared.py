@@ -28,6 +28,21 @@ def fresnel_dr(cos_i: Any, eta: Any) -> Any:
     return dr.select(sin2_t >= 1.0, 1.0, 0.5 * (r_perp * r_perp + r_par * r_par))
 
 
+def lobe_or_body_sample(wo: Any, pick_lobe: Any, lobe_flag: Any, pdf: Any) -> Any:
+    """A ``BSDFSample3f`` for direction ``wo`` drawn from a BSDF's first component (a lobe of type
+    ``lobe_flag``) where ``pick_lobe``, else from its second, the diffuse body; density ``pdf``."""
+    import drjit as dr
+    import mitsuba as mi
+
+    bs = mi.BSDFSample3f()
+    bs.wo = wo
+    bs.eta = 1.0
+    bs.sampled_component = dr.select(pick_lobe, mi.UInt32(0), mi.UInt32(1))
+    bs.sampled_type = dr.select(pick_lobe, mi.UInt32(+lobe_flag), mi.UInt32(+mi.BSDFFlags.DiffuseReflection))
+    bs.pdf = pdf
+    return bs
+
+
 def glossy_or_diffuse_sample(
     wo: Any, pick_glossy: Any, glossy: Any, body: Any, pdf: Any, body_factor: Any, active: Any
 ) -> tuple[Any, Any]:
@@ -37,16 +52,7 @@ def glossy_or_diffuse_sample(
     import drjit as dr
     import mitsuba as mi
 
-    bs = mi.BSDFSample3f()
-    bs.wo = wo
-    bs.eta = 1.0
-    bs.sampled_component = dr.select(pick_glossy, mi.UInt32(0), mi.UInt32(1))
-    bs.sampled_type = dr.select(
-        pick_glossy,
-        mi.UInt32(+mi.BSDFFlags.GlossyReflection),
-        mi.UInt32(+mi.BSDFFlags.DiffuseReflection),
-    )
-    bs.pdf = pdf
+    bs = lobe_or_body_sample(wo, pick_glossy, mi.BSDFFlags.GlossyReflection, pdf)
     ok = active & (mi.Frame3f.cos_theta(wo) > 0) & (pdf > 0)
     weight = (mi.Spectrum(glossy) + body_factor * body) / dr.maximum(pdf, 1e-12)
     return bs, dr.select(ok, weight, 0.0)

@@ -521,9 +521,9 @@ def render_resin_mesh(
     ``refractive_index`` (Fresnel reflection) over a diffuse body of ``body_albedo``,
     with the internal scattering accounted for (Weidlich & Wilkie 2007); on the vectorised
     variants it is printapp's copy of it (:func:`coated_resin_bsdf`), which draws the mirror
-    reflection half the time instead of about 8 %: the same image with a third of the
-    variance where a relief's facets glint (the preview's noise on the part_relief example,
-    at the same samples, 5.5 % → 3.1 %). The camera
+    reflection 70 % of the time instead of about 8 %: the same image with a third of the
+    variance where a relief's facets glint or less (the preview's noise on the part_relief
+    example, at the same samples, 5.5 % → 3.1 % when it drew it half the time). The camera
     looks at the centre of the bounding box from the given elevation and azimuth and
     frames the bounding sphere (from ``distance_scale`` times as far, see :class:`Framing`)
     of ``frame_vertices`` (default: the mesh's own), so that a base shape and its relief

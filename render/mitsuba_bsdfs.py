@@ -90,8 +90,15 @@ def surface_bsdf(surface: Any) -> Any:
     return bsdf
 
 
+MIRROR_PROBABILITY = 0.7
+"""How often the coated resin draws its mirror reflection. Measured with 16 samples a half on four
+examples' previews (tag_with_slot, part_relief, brushed_cylinder, tile_fbm), the variance at
+0.7 was 0.77-0.92 times that at 0.5; 0.75 was even with 0.7, 0.8 worse on part_relief, 0.85
+and up worse still (the body's indirect light getting too few samples)."""
+
+
 def coated_resin_bsdf(
-    body_rgb: tuple[float, float, float], ior: float, mirror_probability: float = 0.5
+    body_rgb: tuple[float, float, float], ior: float, mirror_probability: float = MIRROR_PROBABILITY
 ) -> Any:
     """A smooth resin as a Mitsuba BSDF: Mitsuba's ``plastic`` (nonlinear), its mirror drawn with
     probability ``mirror_probability`` instead of plastic's Fresnel-weighted choice (variant already set).
@@ -365,15 +372,16 @@ def _register_plugins() -> None:
 
     class CoatedResin(mi.BSDF):
         """Mitsuba's ``plastic`` (a smooth dielectric coat over a Lambertian body, with the body's
-        internal reflections), sampled so that the coat's mirror reflection is drawn half the time.
+        internal reflections), sampled so that the coat's mirror reflection is drawn more often.
 
         ``plastic`` draws the mirror with probability ``F w / (F w + (1 - F)(1 - w))``, ``w`` the
         specular sampling weight: about 8 % at normal incidence on a resin. The mirror carries
         every glint of the soft box on a relief's facets, and no light sample can find it (it is
         a delta lobe), so a glint pixel's samples are 0 or 12 times its mean: on the part_relief
-        example that was half of the preview's variance in 1 % of its pixels. Drawn half the
-        time, the mirror's relative variance falls from ``(1 - p) / p`` = 11 to 1; the body's
-        sampled directions (indirect light only: direct light comes from light samples) halve.
+        example that was half of the preview's variance in 1 % of its pixels. Drawn with
+        probability ``p`` = 0.7 (:data:`MIRROR_PROBABILITY`), the mirror's relative variance
+        ``(1 - p) / p`` falls from 11 to 0.43; the body's sampled directions (indirect light
+        only: direct light comes from light samples) fall to 30 %.
         Values and densities are plastic's (tests/test_representations.py compares them).
         """
 
@@ -382,7 +390,7 @@ def _register_plugins() -> None:
             self.eta = float(props.get("ior", 1.5))
             body = props.get("body", mi.ScalarColor3f(0.5, 0.5, 0.5))
             f_int = float(props.get("f_dr_int", 0.6))
-            self.p_mirror = float(props.get("mirror_probability", 0.5))
+            self.p_mirror = float(props.get("mirror_probability", MIRROR_PROBABILITY))
             rho = [float(body[i]) for i in range(3)]
             # rho / (pi n^2 (1 - rho F_dr,int)) per channel: plastic's nonlinear body
             self.body_factor = mi.Color3f(*[r / (math.pi * self.eta**2 * (1.0 - r * f_int)) for r in rho])

@@ -223,6 +223,7 @@ def bench_render(repeats: int) -> StageResult:
         reference_s = time.perf_counter() - start
         renders: dict[str, tuple[np.ndarray, np.ndarray, list[float]]] = {}
         for mode in ("geometry", "model", "table"):
+            shot(mode, scale, _SPP, 99, size=size)  # untimed: Dr.Jit compiles each new configuration
             times, images = [], []
             for seed in range(max(2, min(repeats, 3))):
                 start = time.perf_counter()

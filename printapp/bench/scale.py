@@ -82,6 +82,11 @@ def _one_size(size_mm: float, repeats: int) -> list[dict[str, Any]]:
     reference_s = time.perf_counter() - start
     renders = {}
     for mode in ("geometry", "model"):
+        # Untimed first renders at both sample counts: Dr.Jit compiles a kernel per new
+        # configuration, and a compile (the model's plugin, 0.5-0.9 s) caught in one timed render
+        # of three had set one size's median in two runs.
+        shot(mode, _SPP, 99)
+        shot(mode, _SPP // 4, 99)
         times, images, short = [], [], []
         for seed in range(max(2, min(repeats, 3))):
             start = time.perf_counter()

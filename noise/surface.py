@@ -8,6 +8,16 @@ the step. Fields are treated as line fields (the sign of a vector is kept contin
 along a streamline), so principal curvature directions, which have no sign, work too.
 Each vertex's value is the mean of 3-D sparse convolution noise sampled along its
 streamline, ``length`` forward and backward.
+
+Tracing one streamline per vertex is the reference (``method="per_vertex"``). By default the
+streamlines are reused (Stalling & Hege's FastLIC, 1995, which Battke et al. carry to
+surfaces): longer streamlines are seeded only at vertices that no earlier one passed within
+half a step of, and every vertex that near takes the box average centred where the
+streamline passes it, from running sums. On ``examples/brushed_part.toml``'s 684k vertices
+that traces 4 points per vertex instead of 41 (``printapp bench surface``). The price is a
+shift across the flow of at most half a step, the along-flow sampling's own resolution:
+tests/test_surface.py checks the bookkeeping against the reference where streamlines run
+through vertices, and the shift's effect where they do not.
 """
 
 from __future__ import annotations
@@ -23,24 +33,56 @@ from noise.frames import angle_weighted_normals, onb
 def face_adjacency(faces: np.ndarray) -> np.ndarray:
     """Neighbour of each face across the edge opposite each of its vertices (-1 on a border).
 
+    Where more than two faces share an edge (not a manifold), they are paired in the order
+    of their corners (corner ``i`` of face ``f`` at ``i * m + f``), first with second, third
+    with fourth.
+
     Returns
     -------
     (m, 3) int64 array: ``nbr[f, i]`` shares the edge ``(faces[f, i+1], faces[f, i+2])``.
     """
-    tris = np.asarray(faces, dtype=np.int64)
+    tris = np.ascontiguousarray(faces, dtype=np.int64)
+    n_v = int(tris.max()) + 1 if tris.size else 0
+    return _face_adjacency(tris, n_v)
+
+
+@njit(cache=True)
+def _face_adjacency(tris, n_v):
+    # Edges bucketed by their lower vertex (a counting sort, linear in the faces), then
+    # matched on the higher one within each bucket (a handful of edges per vertex).
     m = tris.shape[0]
-    a = np.concatenate([tris[:, 1], tris[:, 2], tris[:, 0]])
-    b = np.concatenate([tris[:, 2], tris[:, 0], tris[:, 1]])
-    owner = np.tile(np.arange(m), 3)
-    corner = np.repeat(np.arange(3), m)
-    lo, hi = np.minimum(a, b), np.maximum(a, b)
-    order = np.lexsort((hi, lo))
-    lo, hi, owner, corner = lo[order], hi[order], owner[order], corner[order]
+    start = np.zeros(n_v + 1, dtype=np.int64)
+    for corner in range(3):
+        for f in range(m):
+            a, b = tris[f, (corner + 1) % 3], tris[f, (corner + 2) % 3]
+            start[min(a, b) + 1] += 1
+    for v in range(n_v):
+        start[v + 1] += start[v]
+    fill = start[:-1].copy()
+    hi = np.empty(3 * m, dtype=np.int64)
+    slot = np.empty(3 * m, dtype=np.int64)
+    for corner in range(3):
+        for f in range(m):
+            a, b = tris[f, (corner + 1) % 3], tris[f, (corner + 2) % 3]
+            k = fill[min(a, b)]
+            fill[min(a, b)] += 1
+            hi[k] = max(a, b)
+            slot[k] = corner * m + f
     nbr = np.full((m, 3), -1, dtype=np.int64)
-    same = (lo[1:] == lo[:-1]) & (hi[1:] == hi[:-1])
-    first = np.nonzero(same)[0]
-    nbr[owner[first], corner[first]] = owner[first + 1]
-    nbr[owner[first + 1], corner[first + 1]] = owner[first]
+    matched = np.zeros(3 * m, dtype=np.bool_)
+    for v in range(n_v):
+        for s in range(start[v], start[v + 1]):
+            if matched[s]:
+                continue
+            for t in range(s + 1, start[v + 1]):
+                if not matched[t] and hi[t] == hi[s]:
+                    fs, cs = slot[s] % m, slot[s] // m
+                    ft, ct = slot[t] % m, slot[t] // m
+                    nbr[fs, cs] = ft
+                    nbr[ft, ct] = fs
+                    matched[s] = True
+                    matched[t] = True
+                    break
     return nbr
 
 
@@ -338,7 +380,7 @@ def _trace_batch(V, F, FN, NBR, T, start_face, h, n_steps, begin, positions, cou
         )
 
 
-@njit(cache=True)
+@njit(cache=True, parallel=True)
 def _start_faces(vertices: np.ndarray, faces: np.ndarray, field: np.ndarray) -> np.ndarray:
     """Per vertex, the incident face that the field (column 0) and its opposite (column 1) point into most.
 
@@ -347,13 +389,26 @@ def _start_faces(vertices: np.ndarray, faces: np.ndarray, field: np.ndarray) -> 
     visited corner-major (corner c of face f at c * m + f); a later corner wins a tie.
     """
     n_v, m = vertices.shape[0], faces.shape[0]
+    indptr = np.zeros(n_v + 1, dtype=np.int64)
+    for corner in range(3):
+        for f in range(m):
+            indptr[faces[f, corner] + 1] += 1
+    for v in range(n_v):
+        indptr[v + 1] += indptr[v]
+    fill = indptr[:-1].copy()
+    corners = np.empty(3 * m, dtype=np.int64)
+    for corner in range(3):
+        for f in range(m):
+            v = faces[f, corner]
+            corners[fill[v]] = corner * m + f
+            fill[v] += 1
     starts = np.zeros((n_v, 2), dtype=np.int64)
-    best = np.full((n_v, 2), -np.inf)
-    for column in range(2):
-        sign = 1.0 if column == 0 else -1.0
-        for corner in range(3):
-            for f in range(m):
-                v = faces[f, corner]
+    for v in prange(n_v):
+        for column in range(2):
+            sign = 1.0 if column == 0 else -1.0
+            best = -np.inf
+            for k in range(indptr[v], indptr[v + 1]):
+                corner, f = corners[k] // m, corners[k] % m
                 a, b = faces[f, (corner + 1) % 3], faces[f, (corner + 2) % 3]
                 e1x, e1y, e1z = (
                     vertices[a, 0] - vertices[v, 0],
@@ -375,10 +430,66 @@ def _start_faces(vertices: np.ndarray, faces: np.ndarray, field: np.ndarray) -> 
                 w1 = (g22 * r1 - g12 * r2) / det
                 w2 = (g11 * r2 - g12 * r1) / det
                 score = min(w1, w2) / max(math.hypot(w1, w2), 1e-300)
-                if score >= best[v, column]:
-                    best[v, column] = score
+                if score >= best:
+                    best = score
                     starts[v, column] = f
     return starts
+
+
+REUSE_REGIONS = 8
+"""Streamline reuse runs in this many slabs of the mesh at once (by vertex count along its longest
+side), each seeding and taking values only for its own vertices: the result depends on this
+number, never on the number of threads."""
+
+
+def _reuse_lines(verts, tris, face_normals, nbr, field, starts, step, n_window, n_long, tolerance):
+    """:func:`_trace_reuse` over :data:`REUSE_REGIONS` slabs in parallel threads, joined in slab order."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    import numba
+
+    n_v = len(verts)
+    axis = int(np.argmax(np.ptp(verts, axis=0))) if n_v else 0
+    order = np.argsort(verts[:, axis], kind="stable")
+    regions = [np.sort(part) for part in np.array_split(order, REUSE_REGIONS)]
+    live = np.einsum("ij,ij->i", field, field) >= 1e-18
+    line_of = np.full(n_v, -1, dtype=np.int64)
+    arc_of = np.zeros(n_v)
+
+    def run(members: np.ndarray):
+        best = np.full(n_v, -1.0)
+        best[members[live[members]]] = np.inf
+        return _trace_reuse(
+            verts,
+            tris,
+            face_normals,
+            nbr,
+            field,
+            starts,
+            step,
+            n_window,
+            n_long,
+            tolerance**2,
+            members,
+            best,
+            line_of,
+            arc_of,
+        )
+
+    with ThreadPoolExecutor(max_workers=max(1, min(numba.get_num_threads(), REUSE_REGIONS))) as pool:
+        parts = list(pool.map(run, regions))
+    line_offset, point_offset = 0, 0
+    starts_all, zeros_all = [], []
+    for members, (points, line_start, line_zero) in zip(regions, parts, strict=True):
+        taken = members[line_of[members] >= 0]
+        line_of[taken] += line_offset
+        starts_all.append(line_start[:-1] + point_offset)
+        zeros_all.append(line_zero + point_offset)
+        line_offset += len(line_zero)
+        point_offset += len(points)
+    starts_all.append(np.array([point_offset], dtype=np.int64))
+    points = np.concatenate([p[0] for p in parts]) if parts else np.empty((0, 3))
+    return points, np.concatenate(starts_all), np.concatenate(zeros_all), line_of, arc_of
 
 
 def lic_surface(
@@ -393,6 +504,8 @@ def lic_surface(
     impulses: int = 30,
     cell_seed: str = "hash",
     batch: int = 65536,
+    method: str = "reuse",
+    reuse_length: float = 4.0,
 ) -> np.ndarray:
     """Line integral convolution of 3-D sparse convolution noise along a tangent field on a mesh.
 
@@ -416,6 +529,17 @@ def lic_surface(
         Size of one noise cell (same unit): noise is sampled at ``p / noise_scale``.
     seed, impulses, cell_seed
         As for :func:`noise.sparse_convolution`.
+    method : {"reuse", "per_vertex"}
+        ``"per_vertex"`` traces one streamline from every vertex (the reference).
+        ``"reuse"`` (Stalling & Hege's FastLIC idea, as Battke et al. use it on surfaces):
+        streamlines ``reuse_length`` times as long as the kernel's half-length are traced only
+        from vertices that no earlier streamline passed within half a ``step`` of; every
+        vertex within that distance takes the box average centred where the streamline passes
+        it (nearest streamline wins), from running sums along the line. A vertex's window is
+        thus its own streamline's, shifted across the flow by at most half a step, the same
+        resolution as the samples along it.
+    reuse_length : float
+        ``"reuse"``: streamline length each way, in kernel half-lengths (> 1).
 
     Returns
     -------
@@ -436,12 +560,31 @@ def lic_surface(
     for name, value in (("length", length), ("step", step), ("noise_scale", noise_scale)):
         if not (np.isfinite(value) and value > 0):
             raise ValueError(f"{name}: expected a positive number, got {value!r}")
+    if method not in ("reuse", "per_vertex"):
+        raise ValueError(f"method: expected 'reuse' or 'per_vertex', got {method!r}")
+    if not (np.isfinite(reuse_length) and reuse_length > 1.0):
+        raise ValueError(f"reuse_length: expected a number above 1, got {reuse_length!r}")
     n_steps = max(1, round(length / step))
     face_normals = np.cross(verts[tris[:, 1]] - verts[tris[:, 0]], verts[tris[:, 2]] - verts[tris[:, 0]])
     face_normals /= np.maximum(np.linalg.norm(face_normals, axis=1, keepdims=True), 1e-300)
     nbr = face_adjacency(tris)
     starts = _start_faces(verts, tris, t)
     out = np.empty(verts.shape[0])
+    if method == "reuse":
+        n_long = max(n_steps + 2, int(math.ceil(reuse_length * n_steps)))
+        points, line_start, line_zero, line_of, arc_of = _reuse_lines(
+            verts, tris, face_normals, nbr, t, starts, float(step), n_steps, n_long, 0.5 * step
+        )
+        lone = np.flatnonzero(line_of < 0)
+        values = sparse_convolution(
+            np.concatenate([points, verts[lone]]) / noise_scale,
+            seed=seed,
+            impulses=impulses,
+            cell_seed=cell_seed,
+        )
+        _reuse_values(values[: len(points)], line_start, line_zero, line_of, arc_of, n_steps, out)
+        out[lone] = values[len(points) :]
+        return out
     width = 2 * n_steps + 1
     offsets = np.arange(width) - n_steps
     for begin in range(0, verts.shape[0], batch):
@@ -468,3 +611,216 @@ def lic_surface(
         weights[rows[ends], n_steps - back[ends]] = 0.5
         out[begin:end] = (values * weights).sum(axis=1) / weights.sum(axis=1)
     return out
+
+
+@njit(cache=True, nogil=True)
+def _walk_hits(
+    V, F, FN, NBR, T, f, px, py, pz, dx, dy, dz, h, n_steps, n_idle, sign, tol_sq, best, out, hits
+):
+    """As :func:`_walk`, writing step k's point to ``out[k - 1]``, and recording in ``hits``
+    (vertex, signed arc in steps, squared distance) every vertex of a face crossed that lies
+    within ``sqrt(tol_sq)`` of the segment walked through it and nearer than its ``best``.
+    The walk also stops once ``n_idle`` steps have passed without a hit (past step ``n_idle``):
+    the streamline then only crosses vertices that have their values. Returns (steps done,
+    hits recorded, the hits array, whether the walk ended by itself: a border, a vanishing
+    field, or circling a vertex)."""
+    prev_x, prev_y, prev_z = dx, dy, dz
+    n_hits = 0
+    last_hit = 0
+    for k in range(1, n_steps + 1):
+        remaining = h
+        crossings = 0
+        while remaining > 1e-12:
+            ux, uy, uz, ok = _direction(V, F, FN, T, f, px, py, pz, prev_x, prev_y, prev_z)
+            if not ok:
+                return k - 1, n_hits, hits, True
+            prev_x, prev_y, prev_z = ux, uy, uz
+            l0, l1, l2 = _barycentric(V, F, f, px, py, pz)
+            m0, m1, m2 = _barycentric(V, F, f, px + ux, py + uy, pz + uz)
+            m0 -= l0
+            m1 -= l1
+            m2 -= l2
+            t_exit = remaining
+            edge = -1
+            for i, (lam, mu) in enumerate(((l0, m0), (l1, m1), (l2, m2))):
+                if mu < -1e-15:
+                    t = -max(lam, 0.0) / mu
+                    if t < t_exit:
+                        t_exit = t
+                        edge = i
+            # arc (in steps) where this segment starts: k - 1 steps and what was used of step k
+            arc0 = (k - 1) + (h - remaining) / h
+            for i in range(3):
+                w = F[f, i]
+                wx, wy, wz = V[w, 0] - px, V[w, 1] - py, V[w, 2] - pz
+                s = wx * ux + wy * uy + wz * uz
+                s = min(max(s, 0.0), t_exit)
+                qx, qy, qz = wx - s * ux, wy - s * uy, wz - s * uz
+                d_sq = qx * qx + qy * qy + qz * qz
+                if d_sq < tol_sq and d_sq < best[w]:
+                    if n_hits == hits.shape[0]:  # (rare: a long streamline meets many vertices)
+                        grown = np.empty((2 * hits.shape[0], 3))
+                        grown[:n_hits] = hits
+                        hits = grown
+                    hits[n_hits, 0] = w
+                    hits[n_hits, 1] = sign * (arc0 + s / h)
+                    hits[n_hits, 2] = d_sq
+                    n_hits += 1
+                    last_hit = k
+            px += t_exit * ux
+            py += t_exit * uy
+            pz += t_exit * uz
+            remaining -= t_exit
+            if edge >= 0:
+                g = NBR[f, edge]
+                crossings += 1
+                if g < 0 or crossings > 64:
+                    return k - 1, n_hits, hits, True
+                f = g
+        out[k - 1, 0] = px
+        out[k - 1, 1] = py
+        out[k - 1, 2] = pz
+        if k >= n_idle and k - last_hit > n_idle:
+            return k, n_hits, hits, False
+    return n_steps, n_hits, hits, False
+
+
+@njit(cache=True, nogil=True)
+def _grow(a, need):
+    if need <= a.shape[0]:
+        return a
+    size = a.shape[0]
+    while size < need:
+        size *= 2
+    grown = np.empty((size,) + a.shape[1:], dtype=a.dtype)
+    grown[: a.shape[0]] = a
+    return grown
+
+
+@njit(cache=True, nogil=True)
+def _trace_reuse(V, F, FN, NBR, T, starts, h, n_window, n_long, tol_sq, members, best, line_of, arc_of):
+    """Streamlines seeded, in order, at the ``members`` that no earlier streamline passed near.
+
+    ``best`` is +inf at the members (their squared distance to the nearest streamline so far)
+    and -1 elsewhere (never taken). Returns the streamlines' points (lines end to end, each
+    ordered by arc), each line's first point and the index of its seed point; writes, for the
+    members, the line (numbered from 0 here) whose value each takes and its arc position on
+    it in steps from the seed. A point within ``n_window`` steps of an end where the walk was
+    only cut for length (not at a border or where the field vanishes) cannot give a value:
+    its window would be short.
+    """
+    pos = np.empty((1 << 16, 3))
+    line_start = np.empty(1024, dtype=np.int64)
+    line_zero = np.empty(1024, dtype=np.int64)
+    fwd = np.empty((n_long, 3))
+    back = np.empty((n_long, 3))
+    hits_f = np.empty((1024, 3))
+    hits_b = np.empty((1024, 3))
+    n_pos = 0
+    n_lines = 0
+    for v in members:
+        if best[v] != np.inf:
+            continue
+        x, y, z = V[v, 0], V[v, 1], V[v, 2]
+        tx, ty, tz = T[v, 0], T[v, 1], T[v, 2]
+        idle = n_window + 2
+        nf, hf, hits_f, ended_f = _walk_hits(
+            V,
+            F,
+            FN,
+            NBR,
+            T,
+            starts[v, 0],
+            x,
+            y,
+            z,
+            tx,
+            ty,
+            tz,
+            h,
+            n_long,
+            idle,
+            1.0,
+            tol_sq,
+            best,
+            fwd,
+            hits_f,
+        )
+        nb, hb, hits_b, ended_b = _walk_hits(
+            V,
+            F,
+            FN,
+            NBR,
+            T,
+            starts[v, 1],
+            x,
+            y,
+            z,
+            -tx,
+            -ty,
+            -tz,
+            h,
+            n_long,
+            idle,
+            -1.0,
+            tol_sq,
+            best,
+            back,
+            hits_b,
+        )
+        pos = _grow(pos, n_pos + nb + 1 + nf)
+        for j in range(nb):
+            pos[n_pos + j] = back[nb - 1 - j]
+        pos[n_pos + nb, 0] = x
+        pos[n_pos + nb, 1] = y
+        pos[n_pos + nb, 2] = z
+        for j in range(nf):
+            pos[n_pos + nb + 1 + j] = fwd[j]
+        line_start = _grow(line_start, n_lines + 2)
+        line_zero = _grow(line_zero, n_lines + 1)
+        line_start[n_lines] = n_pos
+        line_zero[n_lines] = n_pos + nb
+        n_pos += nb + 1 + nf
+        hi = float(nf) if ended_f else float(nf - n_window - 1)
+        lo = -float(nb) if ended_b else -float(nb - n_window - 1)
+        best[v] = 0.0
+        line_of[v] = n_lines
+        arc_of[v] = 0.0
+        for hits, count in ((hits_f, hf), (hits_b, hb)):
+            for i in range(count):
+                w = int(hits[i, 0])
+                arc, d_sq = hits[i, 1], hits[i, 2]
+                if lo <= arc <= hi and d_sq < best[w]:
+                    best[w] = d_sq
+                    line_of[w] = n_lines
+                    arc_of[w] = arc
+        n_lines += 1
+    line_start[n_lines] = n_pos
+    return pos[:n_pos].copy(), line_start[: n_lines + 1].copy(), line_zero[:n_lines].copy()
+
+
+@njit(cache=True, parallel=True)
+def _reuse_values(samples, line_start, line_zero, line_of, arc_of, n_window, out):
+    """Each vertex's box average (trapezoidal rule) over its line's samples within ``n_window``
+    steps of its arc position, interpolated between the two sample-centred windows around it."""
+    total = np.empty(samples.shape[0] + 1)
+    total[0] = 0.0
+    for i in range(samples.shape[0]):
+        total[i + 1] = total[i] + samples[i]
+    for v in prange(line_of.shape[0]):
+        line = line_of[v]
+        if line < 0:
+            continue
+        lo, hi = line_start[line], line_start[line + 1] - 1
+        centre = line_zero[line] + arc_of[v]
+        k0 = min(max(int(math.floor(centre)), lo), hi)
+        frac = min(max(centre - k0, 0.0), 1.0)
+        value = 0.0
+        for k, weight in ((k0, 1.0 - frac), (min(k0 + 1, hi), frac)):
+            a, b = max(k - n_window, lo), min(k + n_window, hi)
+            if a == b:
+                window = samples[a]
+            else:
+                window = (total[b + 1] - total[a] - 0.5 * (samples[a] + samples[b])) / (b - a)
+            value += weight * window
+        out[v] = value

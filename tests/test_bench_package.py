@@ -141,7 +141,7 @@ def test_every_stage_has_a_module_named_after_it():
     )
     names = [key.value for key in stages.keys]
     assert names == [
-        *("noise", "frames", "lic", "slice", "mesh", "brdf"),
+        *("noise", "frames", "lic", "surface", "slice", "mesh", "brdf"),
         *("pitch", "adaptive", "mie", "pipeline", "fit", "render", "scale", "translucency", "commands"),
         *("solve", "sweep"),
     ]

@@ -41,6 +41,7 @@ STAGES: dict[str, Callable[[int], StageResult]] = {
     "noise": _lazy("noise"),  # beside the plain kernel and pyfastnoisesimd
     "frames": _lazy("frames"),  # orthonormal bases
     "lic": _lazy("lic"),  # beside rlic
+    "surface": _lazy("surface"),  # surface LIC: streamline reuse beside the per-vertex walk
     "slice": _lazy("slice"),  # beside PrusaSlicer
     "mesh": _lazy("mesh"),  # height map to STL beside Blender
     "brdf": _lazy("brdf"),  # beside embreex

@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import functools
 import zipfile
 from pathlib import Path
+from typing import BinaryIO
 
 import numpy as np
 
 from printapp.errors import DesignError
+from printapp.outputs import FileContent
 
 _STL_HEADER = b"printapp binary STL; units: mm".ljust(80, b" ")
 _ZIP_EPOCH = (1980, 1, 1, 0, 0, 0)
@@ -15,22 +18,15 @@ STL_RECORD = np.dtype([("normal", "<f4", 3), ("vertices", "<f4", (3, 3)), ("attr
 """One binary STL triangle: facet normal, three corners (float32, mm), attribute bytes."""
 
 
-def stl_bytes(vertices: np.ndarray, faces: np.ndarray) -> bytearray:
-    """A binary STL of a triangle mesh (mm), with unit facet normals computed in float64.
-
-    The header is fixed, so the same mesh always gives the same bytes. Plain numpy, in
-    chunks that stay in cache, written straight into the file's buffer: loading a numba
-    kernel would cost `printapp emboss` more (0.5 s) than the whole of this.
-    """
+def _stl_chunks(vertices: np.ndarray, faces: np.ndarray, chunk: int = 1 << 15):
+    """The records of a binary STL in chunks: ``(first triangle, records)``, facet normals unit
+    vectors computed in float64. Two buffers take turns, so a chunk stays valid while the next
+    is built (a writer thread may still be writing it)."""
     verts = np.asarray(vertices, dtype=np.float64)
     tris = np.asarray(faces, dtype=np.int64)
     n = len(tris)
-    buffer = bytearray(84 + 50 * n)
-    buffer[:80] = _STL_HEADER
-    buffer[80:84] = n.to_bytes(4, "little")
-    records = np.frombuffer(buffer, dtype=STL_RECORD, offset=84)
-    chunk = 1 << 16
-    for start in range(0, n, chunk):
+    buffers = [np.zeros(min(chunk, max(n, 1)), dtype=STL_RECORD) for _ in range(2)]
+    for index, start in enumerate(range(0, n, chunk)):
         part = tris[start : start + chunk]
         a, b, c = verts[part[:, 0]], verts[part[:, 1]], verts[part[:, 2]]
         e1, e2 = b - a, c - a
@@ -42,11 +38,48 @@ def stl_bytes(vertices: np.ndarray, faces: np.ndarray) -> bytearray:
             normal[:, 0] * normal[:, 0] + normal[:, 1] * normal[:, 1] + normal[:, 2] * normal[:, 2]
         )
         np.divide(normal, length[:, None], out=normal, where=length[:, None] > 0)
-        rows = records[start : start + len(part)]
+        rows = buffers[index % 2][: len(part)]
         rows["normal"] = normal
         corners = rows["vertices"]
         corners[:, 0], corners[:, 1], corners[:, 2] = a, b, c
+        yield start, rows
+
+
+def _stl_header(n: int) -> bytes:
+    return _STL_HEADER + n.to_bytes(4, "little")
+
+
+def stl_bytes(vertices: np.ndarray, faces: np.ndarray) -> bytearray:
+    """A binary STL of a triangle mesh (mm), with unit facet normals computed in float64.
+
+    The header is fixed, so the same mesh always gives the same bytes. Plain numpy, in
+    chunks that stay in cache: loading a numba kernel would cost `printapp emboss` more
+    (0.5 s) than the whole of this.
+    """
+    n = len(faces)
+    buffer = bytearray(84 + 50 * n)
+    buffer[:84] = _stl_header(n)
+    records = np.frombuffer(buffer, dtype=STL_RECORD, offset=84)
+    for start, rows in _stl_chunks(vertices, faces):
+        records[start : start + len(rows)] = rows
     return buffer
+
+
+def write_stl(handle: BinaryIO, vertices: np.ndarray, faces: np.ndarray) -> None:
+    """:func:`stl_bytes`, written to ``handle`` chunk by chunk as it is built: a thread writes one
+    chunk while the next is computed, and the whole file is never held in memory (for
+    `emboss`'s 2-million-triangle slabs, 105 MB)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    handle.write(_stl_header(len(faces)))
+    with ThreadPoolExecutor(max_workers=1) as writer:
+        pending = None
+        for _, rows in _stl_chunks(vertices, faces):
+            if pending is not None:
+                pending.result()  # the buffer about to be reused has been written
+            pending = writer.submit(handle.write, memoryview(rows).cast("B"))
+        if pending is not None:
+            pending.result()
 
 
 def threemf_bytes(vertices: np.ndarray, faces: np.ndarray, name: str = "printapp model") -> bytes:
@@ -160,8 +193,9 @@ def mesh_files(
     *,
     name: str | None = None,
     refractive_index: float = 1.5,
-) -> list[tuple[Path, bytes]]:
-    """The file(s) that hold a mesh written as ``out``, by its suffix: ``(path, bytes)`` pairs.
+) -> list[tuple[Path, FileContent]]:
+    """The file(s) that hold a mesh written as ``out``, by its suffix: ``(path, content)`` pairs
+    (an STL is streamed: its content writes it to an open file).
 
     ``.stl`` (binary), ``.3mf``, ``.ply`` (binary), or ``.obj`` with its ``.mtl`` beside it
     (the resin's ``refractive_index`` as ``Ni``). ``name`` names the 3MF object (default:
@@ -170,7 +204,7 @@ def mesh_files(
     check_mesh_output(out)
     suffix = out.suffix.lower()
     if suffix == ".stl":
-        return [(out, stl_bytes(vertices, faces))]
+        return [(out, functools.partial(write_stl, vertices=vertices, faces=faces))]
     if suffix == ".3mf":
         return [(out, threemf_bytes(vertices, faces, name or out.stem))]
     if suffix == ".ply":

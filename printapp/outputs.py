@@ -21,9 +21,14 @@ import tempfile
 from collections.abc import Callable
 from pathlib import Path
 from types import TracebackType
+from typing import BinaryIO
 
 from printapp.errors import DesignError
 from printapp.interrupts import check as check_interrupt
+
+FileContent = bytes | bytearray | memoryview | Callable[[BinaryIO], None]
+"""What a file holds: its bytes, or a function that writes them to an open binary file (a large
+file streamed as it is made, never held in memory whole)."""
 
 
 def _current_umask() -> int:
@@ -54,7 +59,7 @@ def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
     return atomic_write_files([(Path(path), data)])[0]
 
 
-def atomic_write_files(outputs: list[tuple[Path, bytes]]) -> list[Path]:
+def atomic_write_files(outputs: list[tuple[Path, FileContent]]) -> list[Path]:
     """Write several files so that none appears unless all were written.
 
     Every file is first written in full to a temporary name beside its destination;
@@ -81,7 +86,10 @@ def atomic_write_files(outputs: list[tuple[Path, bytes]]) -> list[Path]:
             staged.append(tmp)
             with os.fdopen(fd, "wb") as handle:
                 os.fchmod(handle.fileno(), FILE_MODE)
-                handle.write(data)
+                if callable(data):
+                    data(handle)
+                else:
+                    handle.write(data)
         check_interrupt()
         for tmp, current in zip(staged, paths, strict=True):
             os.replace(tmp, current)
@@ -188,10 +196,14 @@ class OutputFolder:
             self._files.append(name)
         return self._staging / name
 
-    def write_bytes(self, name: str, data: bytes) -> None:
+    def write_bytes(self, name: str, data: FileContent) -> None:
         """Stage ``name`` with ``data``; a full disk or a lost folder is one sentence, not a traceback."""
         try:
-            self.path(name).write_bytes(data)
+            with open(self.path(name), "wb") as handle:
+                if callable(data):
+                    data(handle)
+                else:
+                    handle.write(data)
         except OSError as exc:
             raise DesignError(f"{self.given / name}: cannot write the file ({exc.strerror or exc})") from None
 

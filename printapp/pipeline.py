@@ -7,7 +7,7 @@ moved into place only at the end.
 
 from __future__ import annotations
 
-import io
+import functools
 import json
 import math
 import platform
@@ -22,7 +22,7 @@ from printapp.brdf import brdf_arrays, npz_bytes
 from printapp.cure import describe_constants
 from printapp.design import Design, TileBase
 from printapp.design_io import resolved_toml
-from printapp.exporters import png_bytes, stl_bytes, threemf_bytes
+from printapp.exporters import png_bytes, threemf_bytes, write_stl
 from printapp.mesh import (
     SolidCheck,
     check_solid,
@@ -309,12 +309,14 @@ def run_design(
             out.write_text("design.resolved.toml", resolved_toml(design))
             out.write_bytes("brdf.npz", npz_bytes(brdf_arrays(predicted)))
             if ok or force:
-                out.write_bytes("model.stl", stl_bytes(mesh.vertices, mesh.faces))
+                out.write_bytes(
+                    "model.stl", functools.partial(write_stl, vertices=mesh.vertices, faces=mesh.faces)
+                )
                 out.write_bytes("model.3mf", threemf_bytes(mesh.vertices, mesh.faces, design.name))
                 if slices is not None:
-                    archive = io.BytesIO()
-                    write_sl1(archive, slices, "slices")
-                    out.write_bytes("slices.sl1", archive.getvalue())
+                    out.write_bytes(
+                        "slices.sl1", functools.partial(write_sl1, slices=slices, job_name="slices")
+                    )
         profile = design.printer.profile
         lo, hi = solid.bbox_min_mm, solid.bbox_max_mm
         grid = list(relief.patch.shape) if isinstance(design.base, TileBase) else None

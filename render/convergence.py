@@ -29,17 +29,17 @@ inequality): that, over the object's mean luminance, is the *denoised error*. It
 and a denoised image is delivered only where it is below the raw noise; whether a preview
 has converged is decided by the raw noise alone.
 
-**Progressive rendering** (:func:`converge`): both halves start at ``first_spp`` samples;
-from the noise measured, the samples needed for the goal are predicted (noise falls as
-``1 / sqrt(spp)``, or faster with stratification, so the prediction errs on the safe side),
-rounded up to whole multiples of the first passes' samples, and added to both halves, until
-the goal is met or the budget is spent. Every decision is taken from the image, never from a
-clock, so the same scene and seed give the same passes and the same image. The one exception
-is the time cap: the time the second round of passes took (warm: the first also compiles)
-fixes, once, how many samples fit in the cap, rounded down to a power of two. Where that
-binds (and only there) a machine twice as fast or slow may take a different number of
-samples; :class:`Converged` says whether it did. The time cap counts rendering only, not the
-denoiser.
+**Progressive rendering** (:func:`converge`): both halves start at ``first_spp`` samples; from
+the noise measured, the samples needed for the goal are predicted (noise falls as ``spp^-a``,
+``a`` measured from the last two rounds, :func:`noise_rate`; no round adds more than
+:data:`MAX_LEAP` times the samples taken), rounded up to whole multiples of the first passes'
+samples, and added to both halves, until the goal is met or the budget is spent. Every
+decision is taken from the image, never from a clock, so the same scene and seed give the same
+passes and the same image. The one exception is the time cap: the time the second round of
+passes took (warm: the first also compiles) fixes, once, how many samples fit in the cap,
+rounded down to a power of two. Where that binds (and only there) a machine twice as fast or
+slow may take a different number of samples; :class:`Converged` says whether it did. The time
+cap counts rendering only, not the denoiser.
 """
 
 from __future__ import annotations
@@ -176,6 +176,29 @@ class Converged:
         return self.noise <= self.target
 
 
+PREDICTION_MARGIN = 1.1
+"""Samples predicted for the goal are this many times what the measured rate says."""
+MAX_LEAP = 8
+"""A round adds at most this many times the samples already taken: the rate is then measured
+again before the prediction reaches far."""
+
+
+def noise_rate(history: list[tuple[int, float]]) -> float:
+    """The exponent ``a`` in noise ~ spp^-a, from the last two rounds of ``history`` ``(spp, noise)``.
+
+    Independent samples give 1/2; a stratified sampler does better within a pass (up to 3/4
+    on a pixel's edges, Mitchell 1996), which a prediction at 1/2 turns into too many samples
+    (``fitted_marble``'s preview: 1.68 % at 1,024 samples for a 2 % goal). The rate is taken
+    only from rounds at least four times apart (closer, the noise of the noise figure
+    swamps it), and kept within [1/2, 3/4]; otherwise 1/2, the safe side.
+    """
+    if len(history) >= 2:
+        (n0, e0), (n1, e1) = history[-2], history[-1]
+        if n1 >= 4 * n0 and e0 > 0 and e1 > 0 and math.isfinite(e0) and math.isfinite(e1):
+            return min(max(math.log(e0 / e1) / math.log(n1 / n0), 0.5), 0.75)
+    return 0.5
+
+
 def _pow2_floor(n: float) -> int:
     return 1 << max(0, math.floor(math.log2(max(n, 1.0))))
 
@@ -265,7 +288,11 @@ def converge(
         if noise <= s.target:
             stopped = "noise target"
             break
-        want = math.ceil(n * (noise / s.target) ** 2 * 1.15) if math.isfinite(noise) else 2 * n
+        if math.isfinite(noise):
+            want = math.ceil(n * (noise / s.target) ** (1.0 / noise_rate(history)) * PREDICTION_MARGIN)
+            want = min(want, MAX_LEAP * n)  # measure again before extrapolating further
+        else:
+            want = 2 * n
         step = s.first_spp  # in whole first rounds: predictable, and no power-of-two overshoot
         new_n = min(max(-(-want // step) * step, n + step), budget)
         if new_n <= n:

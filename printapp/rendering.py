@@ -148,7 +148,7 @@ def render_preview(
     *,
     medium: MediumRGB | None = None,
     light: StudioLight | None = None,
-    tables: dict[str, TableSurface] | None = None,
+    tables: dict[str, Any] | None = None,
     fixed_spp: int | None = None,
     mode_source: str = "in the design",
     translucency: str = "medium",
@@ -160,7 +160,8 @@ def render_preview(
     object, so it is always rendered as geometry; so are designs with booleans (no
     smooth base), and previews on Mitsuba's scalar variant (the BRDF plugins are Python
     code, which only the vectorised variants run at speed). ``tables`` keeps a traced
-    table between calls (a light sweep renders the same surface several times).
+    table, and the loaded scene with its denoiser guides, between calls: a light sweep renders
+    the same surface several times, moving only the lamps.
 
     The preview is rendered in passes until its noise meets ``design.render.noise``
     (:func:`render.convergence.converge`); with ``fixed_spp`` it takes that many samples
@@ -172,7 +173,14 @@ def render_preview(
     the tile instead (:func:`render.subsurface.subsurface_tile`).
     """
     from printapp.highlight_check import preview_light
-    from render.mitsuba_adapter import PREVIEW_FOV_DEG, Framing, choose_variant, resin_scene_dict
+    from render.mitsuba_adapter import (
+        PREVIEW_FOV_DEG,
+        Framing,
+        choose_variant,
+        lamp_transforms,
+        resin_scene_dict,
+        studio_places,
+    )
     from render.representation import Choice, choose_representation, compact_surface, table_surface
 
     if light is None:
@@ -182,7 +190,12 @@ def render_preview(
     frame = Framing.of(np.asarray(mesh.vertices), r.width_px, r.height_px, PREVIEW_FOV_DEG, r.distance_scale)
     feature = design.texture.feature_size_mm
     pixels = feature / frame.pixel_footprint_mm
-    base = base_shape(design, relief)
+    if tables is not None and "base" in tables:
+        base = tables["base"]  # the same object each frame: a loaded scene is known by it
+    else:
+        base = base_shape(design, relief)
+        if tables is not None:
+            tables["base"] = base
     if medium is not None and translucency == "bssrdf":
         choice = Choice(
             "geometry",
@@ -238,34 +251,65 @@ def render_preview(
         "distance_scale": r.distance_scale,
         "frame_vertices": np.asarray(mesh.vertices),
     }
-    scene_dict, _ = resin_scene_dict(
-        np.asarray(target.vertices),
-        np.asarray(target.faces),
-        body_albedo=rgb,
-        medium=None if translucency == "bssrdf" else medium,
-        surface=surface,
-        **camera,
-    )
-    if medium is not None and translucency == "bssrdf":
-        from render.subsurface import eye_of, lights_of, subsurface_tile
 
-        if not isinstance(design.base, TileBase):
-            raise ValueError("the BSSRDF is rendered for tiles only")
-        p = relief.patch
-        vertices, faces, radiance = subsurface_tile(
-            p.heights_mm,
-            p.pitch_x_mm,
-            p.pitch_y_mm,
-            p.origin_x_mm,
-            p.origin_y_mm,
-            design.base.thickness_mm,
-            medium,
-            design.material.refractive_index,
-            lights_of(scene_dict),
-            eye_of(scene_dict),
+    def load_and_converge(loaded: dict[str, Any] | None) -> tuple[Converged, str, int]:
+        scene_dict, _ = resin_scene_dict(
+            np.asarray(target.vertices),
+            np.asarray(target.faces),
+            body_albedo=rgb,
+            medium=None if translucency == "bssrdf" else medium,
+            surface=surface,
+            **camera,
         )
-        scene_dict, _ = resin_scene_dict(vertices, faces, body_albedo=rgb, emission=radiance, **camera)
-    converged, denoiser_name, object_pixels = _converge(scene_dict, design, fixed_spp)
+        if medium is not None and translucency == "bssrdf":
+            from render.subsurface import eye_of, lights_of, subsurface_tile
+
+            if not isinstance(design.base, TileBase):
+                raise ValueError("the BSSRDF is rendered for tiles only")
+            p = relief.patch
+            vertices, faces, radiance = subsurface_tile(
+                p.heights_mm,
+                p.pitch_x_mm,
+                p.pitch_y_mm,
+                p.origin_x_mm,
+                p.origin_y_mm,
+                design.base.thickness_mm,
+                medium,
+                design.material.refractive_index,
+                lights_of(scene_dict),
+                eye_of(scene_dict),
+            )
+            scene_dict, _ = resin_scene_dict(vertices, faces, body_albedo=rgb, emission=radiance, **camera)
+        elif loaded is not None and medium is None:
+            # The object as an instance of a shape group: moving a lamp then rebuilds only the
+            # top of Mitsuba's BVH, not the object's own (0.2 s against 0.64 s for 1.3 M triangles).
+            scene_dict["relief_group"] = {"type": "shapegroup", "relief": scene_dict.pop("relief")}
+            scene_dict["relief"] = {"type": "instance", "shapegroup": {"type": "ref", "id": "relief_group"}}
+        return _converge(scene_dict, design, fixed_spp, loaded)
+
+    # A light sweep renders one scene under lamps that move: it is loaded once (with its
+    # denoiser guides, which no lamp changes) and its lamps are moved between frames. Not
+    # with the BSSRDF, whose emission depends on the lamps.
+    loaded = tables if tables is not None and translucency != "bssrdf" else None
+    # Everything but where the lamps stand must be what the loaded scene was made with.
+    still = replace(
+        light, azimuth_rad=0.0, elevation_rad=0.0, highlight_azimuth_rad=0.0, highlight_elevation_rad=0.0
+    )
+    key = (choice.mode, repr(still))
+    # (The mesh is compared by identity: ``loaded`` holds it, so its id cannot be reused.)
+    if loaded is not None and loaded.get("key") == key and loaded.get("target") is target:
+        places = studio_places(frame, r.elevation_rad, r.azimuth_rad, light, r.distance_scale)
+        lamps = lamp_transforms(frame, places, light, r.distance_scale)
+        renderer = loaded["renderer"]
+        renderer.move_shapes({name: lamps[name] for name in ("softbox", "spot") if renderer.has(name)})
+        converged, denoiser_name, object_pixels = _converge(None, design, fixed_spp, loaded)
+    else:
+        if loaded is not None:
+            loaded.pop("renderer", None)
+            loaded.pop("guides", None)
+            loaded["key"] = key
+            loaded["target"] = target
+        converged, denoiser_name, object_pixels = load_and_converge(loaded)
     return Preview(
         converged.image,
         choice.mode,
@@ -280,17 +324,27 @@ def render_preview(
 
 
 def _converge(
-    scene_dict: dict[str, Any], design: Design, fixed_spp: int | None
+    scene_dict: dict[str, Any] | None,
+    design: Design,
+    fixed_spp: int | None,
+    loaded: dict[str, Any] | None = None,
 ) -> tuple[Converged, str, int]:
     """Render ``scene_dict`` to the design's noise goal (or ``fixed_spp`` samples): the result, the
-    denoiser's name (or why none), and the number of object pixels."""
+    denoiser's name (or why none), and the number of object pixels. ``loaded`` keeps the loaded
+    scene and its denoiser guides for the next call (which then passes no ``scene_dict``)."""
     from printapp.denoiser import open_image_denoise
     from render.convergence import ConvergenceSettings, converge
     from render.progressive import SampleRenderer
 
     r = design.render
-    renderer = SampleRenderer(scene_dict, r.width_px, r.height_px)
-    guides = renderer.aovs(4, r.seed)
+    if loaded is not None and "renderer" in loaded:
+        renderer, guides = loaded["renderer"], loaded["guides"]
+    else:
+        assert scene_dict is not None
+        renderer = SampleRenderer(scene_dict, r.width_px, r.height_px)
+        guides = renderer.aovs(4, r.seed)
+        if loaded is not None:
+            loaded.update(renderer=renderer, guides=guides)
     mask = guides["coverage"] >= 0.5
     denoiser, denoiser_name = (None, 'off (design: [render] denoise = "off")')
     if r.denoise == "auto":

@@ -348,6 +348,18 @@ def studio_places(
     )
 
 
+def lamp_transforms(frame: Framing, places: StudioPlaces, light: StudioLight, distance_scale: float) -> dict:
+    """The lamps' ``to_world`` (unit rectangles aimed at the centre): to place them, or to move them."""
+    import mitsuba as mi
+
+    T, centre, up = mi.ScalarTransform4f, [float(c) for c in frame.centre], [0.0, 0.0, 1.0]
+    box, spot = light.size_factor * frame.radius_mm * distance_scale, places.spot_half_size_mm
+    return {
+        "softbox": T().look_at(origin=places.lamp, target=centre, up=up) @ T().scale([box, box, 1.0]),
+        "spot": T().look_at(origin=places.spot, target=centre, up=up) @ T().scale([spot, spot, 1.0]),
+    }
+
+
 def resin_scene_dict(
     vertices_mm: np.ndarray,
     faces: np.ndarray,
@@ -379,9 +391,7 @@ def resin_scene_dict(
     frame = Framing.of(framed, width_px, height_px, fov_deg, distance_scale)
     centre, radius = frame.centre, frame.radius_mm
     places = studio_places(frame, elevation_rad, azimuth_rad, light, distance_scale)
-    eye, lamp, lamp_distance = places.eye, places.lamp, places.lamp_distance_mm
-    T = mi.ScalarTransform4f
-    box_size = light.size_factor * radius * distance_scale
+    eye, lamp_distance, T = places.eye, places.lamp_distance_mm, mi.ScalarTransform4f
     weights = _irradiance_weights(light, radius, distance_scale, lamp_distance)
     interior = None
     if surface is not None:
@@ -440,12 +450,12 @@ def resin_scene_dict(
         },
         "relief": relief,
     }
+    placed = lamp_transforms(frame, places, light, distance_scale)  # (both lamps; unlit ones are left out)
     if light.radiance > 0.0:
         # (Without light, no box either: a dark box would shade the environment.)
         scene_dict["softbox"] = {
             "type": "rectangle",
-            "to_world": T().look_at(origin=lamp, target=[float(c) for c in centre], up=[0.0, 0.0, 1.0])
-            @ T().scale([box_size, box_size, 1.0]),
+            "to_world": placed["softbox"],
             "emitter": {
                 "type": "area",
                 "radiance": {"type": "rgb", "value": [light.radiance] * 3},
@@ -453,11 +463,9 @@ def resin_scene_dict(
             },
         }
     if light.highlight_radiance > 0.0:
-        spot, spot_size = places.spot, places.spot_half_size_mm
         scene_dict["spot"] = {
             "type": "rectangle",
-            "to_world": T().look_at(origin=spot, target=[float(c) for c in centre], up=[0.0, 0.0, 1.0])
-            @ T().scale([spot_size, spot_size, 1.0]),
+            "to_world": placed["spot"],
             "emitter": {
                 "type": "area",
                 "radiance": {"type": "rgb", "value": [light.highlight_radiance] * 3},

@@ -79,8 +79,30 @@ class SampleRenderer:
         self.width = int(width_px)
         self.height = int(height_px)
         self.scalar = mi.variant().startswith("scalar")
-        self._dict = scene_dict
+        self._dict = dict(scene_dict)
         self.scene = mi.load_dict(scene_dict) if not self.scalar else None
+
+    def has(self, name: str) -> bool:
+        """Whether the scene has an object named ``name`` (a key of its dictionary)."""
+        return name in self._dict
+
+    def move_shapes(self, to_world: dict[str, Any]) -> None:
+        """Give the named shapes (the lamps' rectangles) new ``to_world`` transforms, in place.
+
+        Cheaper than loading the scene again: the meshes stay where they are (Mitsuba rebuilds
+        its BVH, but not the meshes, plugins or kernels). A name the scene lacks is an error.
+        """
+        import mitsuba as mi
+
+        for name, transform in to_world.items():
+            if name not in self._dict:
+                raise KeyError(f"the scene has no shape named {name!r}")
+            self._dict[name] = dict(self._dict[name], to_world=transform)
+        if self.scene is not None:
+            params = mi.traverse(self.scene)
+            for name, transform in to_world.items():
+                params[f"{name}.to_world"] = transform
+            params.update()
 
     def render(self, spp: int, seed: int, pixels: np.ndarray | None = None) -> np.ndarray:
         """The mean of ``spp`` samples per pixel: ``(height, width, 3)`` float64 linear RGB.

@@ -1,6 +1,7 @@
 """The anisotropic highlight: its predicted place and stretch on the screen, its moments, the verdict."""
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -228,3 +229,25 @@ def test_a_brdf_surface_s_azimuth_zero_is_the_world_x_on_every_triangle_of_the_t
         si = scene.ray_intersect(mi.Ray3f(mi.Point3f(x, y, 10.0), mi.Vector3f(0.0, 0.0, -1.0)))
         assert np.array(si.sh_frame.s).ravel() == pytest.approx([1.0, 0.0, 0.0], abs=1e-6)
         assert np.array(si.sh_frame.n).ravel() == pytest.approx([0.0, 0.0, 1.0], abs=1e-6)
+
+
+@pytest.mark.parametrize("mode", ["geometry", "model"])
+def test_the_light_sweep_moves_the_lamps_of_one_loaded_scene(brushed, mode):
+    """The sweep loads its scene once and moves the soft box between frames: each frame is the one
+    a freshly loaded scene under that light gives (the same passes, seeds and denoiser guides)."""
+    from printapp.rendering import light_sweep, render_preview, sweep_azimuths_rad
+    from render.mitsuba_adapter import StudioLight
+
+    design, relief, predicted, _ = brushed
+    design = design.model_copy(update={"render": design.render.model_copy(update={"mode": mode})})
+    strip = light_sweep(
+        design, relief, relief.mesh, predicted, relief.patch, frames=3, width_px=48, height_px=36
+    )
+    small = design.model_copy(
+        update={"render": design.render.model_copy(update={"width_px": 48, "height_px": 36, "spp": 8})}
+    )
+    for k, azimuth in enumerate(sweep_azimuths_rad(design.render.azimuth_rad, 3)):
+        light = replace(StudioLight(), azimuth_rad=azimuth, highlight_radiance=0.0)
+        fresh = render_preview(small, relief, relief.mesh, predicted, relief.patch, light=light, fixed_spp=8)
+        np.testing.assert_allclose(strip[:, 48 * k : 48 * (k + 1)], fresh.image, rtol=0, atol=1e-5)
+    assert strip.std() > 0.01  # the frames differ: the lamp moved

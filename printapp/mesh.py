@@ -44,6 +44,23 @@ class SolidCheck:
         return tuple(float(b - a) for a, b in zip(self.bbox_min_mm, self.bbox_max_mm, strict=True))  # type: ignore[return-value]
 
 
+def enclosed_volume_mm3(vertices: np.ndarray, faces: np.ndarray) -> float:
+    """Signed volume a closed, outward-oriented triangle mesh encloses (mm^3): the divergence
+    theorem, the sum of ``a . (b x c) / 6`` over the triangles, in float64.
+
+    trimesh's ``volume`` is the same integral, but reached through its mass properties
+    (the inertia tensor too): 1.2 s on a 1.4 M-triangle part, against 0.1 s for this.
+    """
+    verts = np.asarray(vertices, dtype=np.float64)
+    tris = np.asarray(faces, dtype=np.int64)
+    total = 0.0
+    for start in range(0, len(tris), 1 << 18):
+        part = tris[start : start + (1 << 18)]
+        a, b, c = verts[part[:, 0]], verts[part[:, 1]], verts[part[:, 2]]
+        total += float(np.einsum("ij,ij->", a, np.cross(b, c)))
+    return total / 6.0
+
+
 def check_solid(mesh: trimesh.Trimesh) -> SolidCheck:
     """Check a mesh with two independent tools: trimesh's edge topology and manifold3d."""
     import manifold3d
@@ -64,7 +81,7 @@ def check_solid(mesh: trimesh.Trimesh) -> SolidCheck:
         winding_consistent=bool(mesh.is_winding_consistent),
         manifold=manifold_ok,
         manifold_status=status_name.split(".")[-1],
-        volume_mm3=float(mesh.volume),
+        volume_mm3=enclosed_volume_mm3(mesh.vertices, mesh.faces),
         genus=(2 - euler) // 2,
         triangles=int(len(mesh.faces)),
         bbox_min_mm=tuple(float(v) for v in lo),  # type: ignore[arg-type]

@@ -212,3 +212,15 @@ def test_repair_closes_every_part_and_drops_none():
     volumes = sorted(c.volume for c in closed)
     assert volumes[-1] < solid.volume < sum(volumes)
     assert solid.volume > volumes[-1] + 0.5 * sum(volumes[:-1])
+
+
+def test_enclosed_volume_is_the_closed_forms_and_trimesh_s():
+    from printapp.mesh import enclosed_volume_mm3
+
+    box = trimesh.creation.box(extents=[2.0, 3.0, 5.0])
+    assert enclosed_volume_mm3(box.vertices, box.faces) == pytest.approx(30.0, rel=1e-12)
+    sphere = trimesh.creation.icosphere(subdivisions=6, radius=4.0)
+    volume = enclosed_volume_mm3(sphere.vertices + [10.0, -3.0, 7.0], sphere.faces)  # any origin
+    assert volume == pytest.approx(sphere.volume, rel=1e-9)
+    assert volume == pytest.approx(4.0 / 3.0 * np.pi * 4.0**3, rel=2e-3)  # the inscribed polyhedron
+    assert enclosed_volume_mm3(sphere.vertices, sphere.faces[:, ::-1]) == pytest.approx(-volume)

@@ -56,6 +56,26 @@ def _direction(V, F, FN, T, f, px, py, pz, prev_x, prev_y, prev_z):
     return dx / norm, dy / norm, dz / norm, True
 
 
+@njit(cache=True, inline="always")
+def _exit(V, F, f, px, py, pz, ux, uy, uz, remaining):
+    """How far (at most ``remaining``) p moves along unit u inside face f, and the edge it leaves
+    by (index of the opposite corner, or -1 if it stays inside)."""
+    l0, l1, l2 = _barycentric(V, F, f, px, py, pz)
+    m0, m1, m2 = _barycentric(V, F, f, px + ux, py + uy, pz + uz)
+    m0 -= l0
+    m1 -= l1
+    m2 -= l2
+    t_exit = remaining
+    edge = -1
+    for i, (lam, mu) in enumerate(((l0, m0), (l1, m1), (l2, m2))):
+        if mu < -1e-15:
+            t = -max(lam, 0.0) / mu
+            if t < t_exit:
+                t_exit = t
+                edge = i
+    return t_exit, edge
+
+
 @njit(cache=True)
 def _walk(V, F, FN, NBR, T, f, px, py, pz, dx, dy, dz, h, n_steps, out, out_start, sign_step):
     """Walk n_steps steps of length h into out[out_start + sign_step * k]; return the steps done."""
@@ -68,19 +88,7 @@ def _walk(V, F, FN, NBR, T, f, px, py, pz, dx, dy, dz, h, n_steps, out, out_star
             if not ok:
                 return k - 1
             prev_x, prev_y, prev_z = ux, uy, uz
-            l0, l1, l2 = _barycentric(V, F, f, px, py, pz)
-            m0, m1, m2 = _barycentric(V, F, f, px + ux, py + uy, pz + uz)
-            m0 -= l0
-            m1 -= l1
-            m2 -= l2
-            t_exit = remaining
-            edge = -1
-            for i, (lam, mu) in enumerate(((l0, m0), (l1, m1), (l2, m2))):
-                if mu < -1e-15:
-                    t = -max(lam, 0.0) / mu
-                    if t < t_exit:
-                        t_exit = t
-                        edge = i
+            t_exit, edge = _exit(V, F, f, px, py, pz, ux, uy, uz, remaining)
             px += t_exit * ux
             py += t_exit * uy
             pz += t_exit * uz
@@ -255,19 +263,7 @@ def _walk_hits(
             if not ok:
                 return k - 1, n_hits, hits, True
             prev_x, prev_y, prev_z = ux, uy, uz
-            l0, l1, l2 = _barycentric(V, F, f, px, py, pz)
-            m0, m1, m2 = _barycentric(V, F, f, px + ux, py + uy, pz + uz)
-            m0 -= l0
-            m1 -= l1
-            m2 -= l2
-            t_exit = remaining
-            edge = -1
-            for i, (lam, mu) in enumerate(((l0, m0), (l1, m1), (l2, m2))):
-                if mu < -1e-15:
-                    t = -max(lam, 0.0) / mu
-                    if t < t_exit:
-                        t_exit = t
-                        edge = i
+            t_exit, edge = _exit(V, F, f, px, py, pz, ux, uy, uz, remaining)
             # arc (in steps) where this segment starts: k - 1 steps and what was used of step k
             arc0 = (k - 1) + (h - remaining) / h
             for i in range(3):

@@ -112,8 +112,12 @@ class Synthetic:
             mean, sd = self.clean, self.sigma
         else:
             mean, sd = self.clean.ravel()[pixels], self.sigma.ravel()[pixels]
-        out = mean + sd / math.sqrt(spp) * rng.standard_normal(mean.shape)
+        out = mean + sd * self.falloff(spp) * rng.standard_normal(mean.shape)
         return np.repeat(out[..., None], 3, axis=-1)
+
+    @staticmethod
+    def falloff(spp):
+        return 1.0 / math.sqrt(spp)
 
 
 def test_converge_stops_at_the_target_deterministically():
@@ -256,15 +260,9 @@ class Stratified(Synthetic):
     """As :class:`Synthetic`, but within a pass the noise falls as spp^-3/4 (a stratified sampler
     on a pixel's edges), independent from pass to pass."""
 
-    def __call__(self, spp, seed, pixels):
-        self.calls.append((spp, seed, None if pixels is None else len(pixels)))
-        rng = np.random.default_rng(seed + self.offset)
-        if pixels is None:
-            mean, sd = self.clean, self.sigma
-        else:
-            mean, sd = self.clean.ravel()[pixels], self.sigma.ravel()[pixels]
-        out = mean + sd * spp**-0.75 * rng.standard_normal(mean.shape)
-        return np.repeat(out[..., None], 3, axis=-1)
+    @staticmethod
+    def falloff(spp):
+        return spp**-0.75
 
 
 @pytest.mark.parametrize("renderer", [Synthetic, Stratified], ids=["independent", "stratified"])

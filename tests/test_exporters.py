@@ -119,3 +119,21 @@ def test_several_files_appear_together_or_not_at_all(tmp_path):
             atomic_write_files([(first, b"new"), (blocked, b"x")])
         assert first.read_bytes() == b"{}"
     assert sorted(p.name for p in tmp_path.rglob("*")) == ["a.json", "b.png", "sub"]  # no temporaries left
+
+
+def test_zip_bytes_is_a_zip_that_zipfile_and_crc_checks_read():
+    import zipfile
+
+    from printapp.exporters import zip_bytes
+
+    entries = [("a.txt", b"hello " * 1000), ("dir/b.bin", bytes(range(256)) * 50), ("empty", b"")]
+    data = zip_bytes(entries)
+    assert data == zip_bytes(entries)  # fixed dates: the same bytes
+    with zipfile.ZipFile(io.BytesIO(data)) as archive:
+        assert archive.testzip() is None  # every CRC checks
+        assert archive.namelist() == [name for name, _ in entries]
+        for name, payload in entries:
+            info = archive.getinfo(name)
+            assert info.compress_type == zipfile.ZIP_DEFLATED and info.date_time == (1980, 1, 1, 0, 0, 0)
+            assert archive.read(name) == payload
+    assert len(data) < 2_000  # deflated: 6 kB of text and 12.8 kB of a repeated pattern

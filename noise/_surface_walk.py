@@ -76,39 +76,10 @@ def _exit(V, F, f, px, py, pz, ux, uy, uz, remaining):
     return t_exit, edge
 
 
-@njit(cache=True)
-def _walk(V, F, FN, NBR, T, f, px, py, pz, dx, dy, dz, h, n_steps, out, out_start, sign_step):
-    """Walk n_steps steps of length h into out[out_start + sign_step * k]; return the steps done."""
-    prev_x, prev_y, prev_z = dx, dy, dz
-    for k in range(1, n_steps + 1):
-        remaining = h
-        crossings = 0
-        while remaining > 1e-12:
-            ux, uy, uz, ok = _direction(V, F, FN, T, f, px, py, pz, prev_x, prev_y, prev_z)
-            if not ok:
-                return k - 1
-            prev_x, prev_y, prev_z = ux, uy, uz
-            t_exit, edge = _exit(V, F, f, px, py, pz, ux, uy, uz, remaining)
-            px += t_exit * ux
-            py += t_exit * uy
-            pz += t_exit * uz
-            remaining -= t_exit
-            if edge >= 0:
-                g = NBR[f, edge]
-                crossings += 1
-                if g < 0 or crossings > 64:
-                    return k - 1  # a border, or stuck circling a vertex
-                f = g
-        idx = out_start + sign_step * k
-        out[idx, 0] = px
-        out[idx, 1] = py
-        out[idx, 2] = pz
-    return n_steps
-
-
 @njit(cache=True, parallel=True)
 def _trace_batch(V, F, FN, NBR, T, start_face, h, n_steps, begin, positions, counts_fwd, counts_back):
     """Trace the streamlines of vertices begin, begin + 1, ... into positions[k, n_steps +- j]."""
+    no_best, no_hits = np.zeros(1), np.zeros((1, 3))  # (never read: no vertex is met)
     for k in prange(positions.shape[0]):
         v = begin + k
         positions[k, n_steps, 0] = V[v, 0]
@@ -120,13 +91,53 @@ def _trace_batch(V, F, FN, NBR, T, start_face, h, n_steps, begin, positions, cou
             counts_back[k] = 0
             continue
         x, y, z = V[v, 0], V[v, 1], V[v, 2]
-        out = positions[k]
-        counts_fwd[k] = _walk(
-            V, F, FN, NBR, T, start_face[v, 0], x, y, z, tx, ty, tz, h, n_steps, out, n_steps, 1
-        )
-        counts_back[k] = _walk(
-            V, F, FN, NBR, T, start_face[v, 1], x, y, z, -tx, -ty, -tz, h, n_steps, out, n_steps, -1
-        )
+        # The reuse walk with no vertex to meet (tolerance 0) and no idle stop: step j forward
+        # lands in positions[k, n_steps + j], backward in positions[k, n_steps - j].
+        fwd, back = positions[k, n_steps + 1 :], positions[k, n_steps - 1 :: -1]
+        counts_fwd[k] = _walk_hits(
+            V,
+            F,
+            FN,
+            NBR,
+            T,
+            start_face[v, 0],
+            x,
+            y,
+            z,
+            tx,
+            ty,
+            tz,
+            h,
+            n_steps,
+            n_steps + 1,
+            1.0,
+            0.0,
+            no_best,
+            fwd,
+            no_hits,
+        )[0]
+        counts_back[k] = _walk_hits(
+            V,
+            F,
+            FN,
+            NBR,
+            T,
+            start_face[v, 1],
+            x,
+            y,
+            z,
+            -tx,
+            -ty,
+            -tz,
+            h,
+            n_steps,
+            n_steps + 1,
+            -1.0,
+            0.0,
+            no_best,
+            back,
+            no_hits,
+        )[0]
 
 
 @njit(cache=True, parallel=True)
@@ -266,7 +277,7 @@ def _walk_hits(
             t_exit, edge = _exit(V, F, f, px, py, pz, ux, uy, uz, remaining)
             # arc (in steps) where this segment starts: k - 1 steps and what was used of step k
             arc0 = (k - 1) + (h - remaining) / h
-            for i in range(3):
+            for i in range(3 if tol_sq > 0.0 else 0):
                 w = F[f, i]
                 wx, wy, wz = V[w, 0] - px, V[w, 1] - py, V[w, 2] - pz
                 s = wx * ux + wy * uy + wz * uz

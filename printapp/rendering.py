@@ -54,6 +54,7 @@ def noise_record(preview: Preview) -> dict[str, Any] | None:
         "converged": c.converged,
         "stopped_by": c.stopped,
         "spp": c.spp,
+        "spp_range": list(c.spp_range),
         "passes": c.passes,
         "budget_spp": c.budget_spp,
         "budget_set_by_time_cap": c.timing_dependent,
@@ -71,7 +72,9 @@ def noise_summary(preview: Preview) -> tuple[bool, str]:
     c = preview.convergence
     if c is None:
         return True, "preview rendered with a fixed number of samples"
-    how = f"{c.spp} samples per pixel in {c.seconds:.1f} s"
+    low, high = c.spp_range
+    spread = f" ({low}-{high}, more where the noise is)" if high > low else ""
+    how = f"{c.spp} samples per pixel{spread} in {c.seconds:.1f} s"
     denoised = ""
     if c.denoised:
         denoised = (

@@ -36,17 +36,19 @@ averaged over its 5 x 5 neighbourhood (one pixel's halves give one degree of fre
 floored at 5 % of the mean; noise falls as ``spp^-a`` (``a`` measured from the last two rounds,
 :func:`noise_rate`), and the counts that reach the goal for the fewest samples in all are the
 Lagrange optimum ``N_i ~ v_i^(1 / (1 + 2a))`` (:func:`allocate_samples`; ``N_i ~ sigma_i`` for
-independent samples), no pixel more than :data:`MAX_LEAP` times what it has per round. Uniform
+independent samples), within the per-pixel cap and no round adding more than :data:`MAX_LEAP`
+times the samples taken (a hot pixel may leap further: the round's total is what extrapolates
+the rate). Uniform
 sampling needs ``mean(sigma^2)`` where this needs ``mean(sigma)^2``: on a CAD part, whose soft-box
 glints and caustics hold most of the variance, the same noise takes 1.45 times fewer samples.
 The noise figure is unchanged: each pixel's halves keep equal counts, so ``(a_i - b_i)^2 / 4`` is
 still its variance, and the figure is measured, never predicted. Every decision is taken from
 the image, never from a clock, so the same scene and seed give the same passes and the same
 image. The one exception is the time cap: the time the second round took (warm: the first also
-compiles) fixes, once, how many samples fit in the cap (their mean per pixel rounded down to a
-power of two). Where that binds (and only there) a machine twice as fast or slow may take a
-different number of samples; :class:`Converged` says whether it did. The time
-cap counts rendering only, not the denoiser.
+compiles) fixes, once, how many samples fit in the cap (their mean per pixel rounded down to
+1, 2, 3, 4, 6, 8, 12..., :func:`_half_octave_floor`). Where that binds (and only there) a
+machine a good deal faster or slower may take a different number of samples; :class:`Converged`
+says whether it did. The time cap counts rendering only, not the denoiser.
 """
 
 from __future__ import annotations
@@ -215,6 +217,16 @@ def _pow2_floor(n: float) -> int:
     return 1 << max(0, math.floor(math.log2(max(n, 1.0))))
 
 
+def _half_octave_floor(n: float) -> int:
+    """``n`` rounded down to 1, 2, 3, 4, 6, 8, 12, 16, 24...: steps of at most 1.5 times.
+
+    The time cap's budget is rounded so, not to a power of two: a machine a few per cent faster
+    or slower still takes the same budget, and no more than a third of what fits is thrown away
+    (a power of two threw away up to half: 60 s fitting 900 samples a pixel bought 512)."""
+    low = _pow2_floor(n)
+    return low * 3 // 2 if low >= 2 and low * 3 // 2 <= n else low
+
+
 SMOOTHING_RADIUS_PX = 2
 """A pixel's variance is read from its (2r + 1)^2 neighbourhood: one pixel's two halves give
 one degree of freedom, too few to steer its samples by."""
@@ -239,8 +251,9 @@ def allocate_samples(
     A pixel with ``N`` samples is predicted to have variance ``unit_variance * N^(-2 rate)``;
     the counts minimising ``sum N`` under ``mean_measured(variance) <= goal`` are (Lagrange)
     ``N_i = lambda * unit_variance_i^(1 / (1 + 2 rate))``, kept between what the pixel has and
-    ``min(MAX_LEAP * have, cap)`` and rounded up to whole ``step``s; ``lambda`` is found by
-    bisection. With ``lanes``, no more than that many samples are added (the time cap).
+    ``cap`` and rounded up to whole ``step``s, the total at most :data:`MAX_LEAP` times what the
+    pixels have; ``lambda`` is found by bisection. With ``lanes``, no more than that many samples
+    are added (the time cap).
 
     Parameters
     ----------
@@ -260,7 +273,9 @@ def allocate_samples(
     (n,) int array: the samples per half each pixel should have, at least ``have``.
     """
     have = np.asarray(have, dtype=np.int64)
-    ceiling = np.maximum(np.minimum(MAX_LEAP * have, cap), have)
+    ceiling = np.maximum(cap, have)
+    leap = (MAX_LEAP - 1) * int(np.sum(have))
+    lanes = leap if lanes is None else min(lanes, leap)
     weight = np.asarray(unit_variance, dtype=np.float64) ** (1.0 / (1.0 + 2.0 * rate))
 
     def counts(lam: float) -> np.ndarray:
@@ -411,6 +426,20 @@ def converge(
     budget = cap  # mean samples per pixel, per half
     lanes_left: int | None = None
     limit = "sample budget"
+
+    def fit_budget(per_lane: float) -> None:
+        """The mean samples per pixel that fit in the time cap at ``per_lane`` seconds a sample,
+        rounded down to a half octave (a machine a little faster or slower takes the same)."""
+        nonlocal budget, lanes_left, limit
+        if not per_lane > 0.0:
+            return
+        spent = float(np.mean(have))
+        more = max(s.time_cap_s - (clock() - start), 0.0) / (2 * per_lane * active.size)
+        affordable = _half_octave_floor(spent + more)
+        if affordable < cap:
+            budget, limit = max(affordable, n), "time cap"
+            lanes_left = max(int(budget * active.size - np.sum(have)), 0)
+
     if history[-1][1] > s.target and 2 * n <= cap:
         warm = clock()
         doubled = have * 2
@@ -420,16 +449,9 @@ def converge(
         per_lane = (clock() - warm) / (2 * n * max(active.size, 1))  # both halves
         n *= 2
         history.append((mean_spp(have), relative_noise(a, b, mask)))
-        if per_lane > 0:
-            # The samples per pixel that fit in the cap, as a power of two: a machine a little
-            # faster or slower takes the same number.
-            affordable = _pow2_floor(
-                max(s.time_cap_s - (clock() - start), 0.0) / (2 * per_lane * active.size) + n
-            )
-            if affordable < cap:
-                budget, limit = max(affordable, n), "time cap"
-                lanes_left = (budget - n) * active.size
+        fit_budget(per_lane)
     stopped = limit
+    timed_again = False
     while True:
         noise = history[-1][1]
         if noise <= s.target:
@@ -447,14 +469,25 @@ def converge(
             want = np.minimum(2 * have, np.maximum(cap, have))
             if lanes_left is not None and int(np.sum(want - have)) > lanes_left:
                 want = have
-        if not np.any(want > have):
+        added = int(np.sum(want - have))
+        if added == 0:
+            if lanes_left is not None and lanes_left >= active.size * s.first_spp:
+                stopped = "sample budget"  # every pixel at max_spp before the clock ran out
             break
+        began = clock()
         a = add(a, have, want, 0)
         b = add(b, have, want, 1)
-        if lanes_left is not None:
-            lanes_left -= int(np.sum(want - have))
         have = want
+        if lanes_left is not None:
+            lanes_left -= added
+            if not timed_again:
+                # The second round is small, so each pass's fixed cost weighs on its timing (it
+                # foretold 512 samples a pixel where 880 fitted): the first adaptive round, several
+                # times larger, fixes the budget once more.
+                timed_again = True
+                fit_budget((clock() - began) / (2 * added))
         history.append((mean_spp(have), relative_noise(a, b, mask)))
+        stopped = limit
     raw = 0.5 * (a + b)
     noise = history[-1][1]
     image, error = raw, None

@@ -317,10 +317,13 @@ def test_allocation_is_the_lagrange_optimum_within_its_caps():
     assert ratio.max() / ratio.min() < 1.0 + 2.0 / n[free].min()
     optimum = np.sum(np.maximum(np.sqrt(unit) * np.sum(np.sqrt(unit)) / (500 * goal), 8))
     assert n.sum() < 1.01 * optimum
-    # whole steps, never fewer than a pixel has, at most MAX_LEAP times it, and the lane budget kept
-    stepped = allocate_samples(unit, have, measured, goal, 0.5, step=4, cap=1 << 20, lanes=1000)
-    assert np.all(stepped % 4 == 0) and np.all(stepped >= 8) and np.all(stepped <= 64)
+    # whole steps, never fewer than a pixel has nor more than the cap, and the lane budget kept
+    stepped = allocate_samples(unit, have, measured, goal, 0.5, step=4, cap=48, lanes=1000)
+    assert np.all(stepped % 4 == 0) and np.all(stepped >= 8) and np.all(stepped <= 48)
     assert 900 < np.sum(stepped - have) <= 1000
+    # a round adds at most MAX_LEAP - 1 times the samples taken, however far the goal
+    far = allocate_samples(unit, have, measured, goal / 100, 0.5, step=1, cap=1 << 20)
+    assert 0.99 * 7 * 8 * 500 < np.sum(far - have) <= 7 * 8 * 500 and far.max() > 8 * 8
 
 
 class Stratified(Synthetic):

@@ -360,6 +360,8 @@ class Render(_Section):
     fails and says so). ``spp`` is the first passes' samples (both halves together).
     ``denoise = "auto"`` writes a preview denoised by Open Image Denoise where that is
     trusted (the verdict still reads the raw noise); ``"off"`` never denoises.
+    ``sampling = "adaptive"`` gives each pixel samples in proportion to its own noise after
+    the first two rounds; ``"uniform"`` gives every object pixel the same.
     """
 
     width_px: Annotated[int, at.Ge(16), at.Le(4096)] = 1024
@@ -370,6 +372,7 @@ class Render(_Section):
     max_spp: Annotated[int, at.Ge(1), at.Le(1 << 20)] = 4096
     time_cap_s: Annotated[float, at.Gt(0.0), at.Le(86400.0)] = 60.0
     denoise: Literal["auto", "off"] = "auto"
+    sampling: Literal["adaptive", "uniform"] = "adaptive"
     elevation_rad: Annotated[float, at.Gt(0.0), at.Lt(math.pi / 2)] = math.radians(40.0)
     azimuth_rad: Annotated[float, at.Ge(-2 * math.pi), at.Le(2 * math.pi)] = math.radians(-60.0)
     distance_scale: Annotated[float, at.Ge(0.2), at.Le(1000.0)] = 1.0

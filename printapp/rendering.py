@@ -358,7 +358,11 @@ def _converge(
         settings = ConvergenceSettings(target=r.noise, first_spp=first, max_spp=2 * first, time_cap_s=1e9)
     else:
         settings = ConvergenceSettings(
-            target=r.noise, first_spp=first, max_spp=max(r.max_spp, 2 * first), time_cap_s=r.time_cap_s
+            target=r.noise,
+            first_spp=first,
+            max_spp=max(r.max_spp, 2 * first),
+            time_cap_s=r.time_cap_s,
+            adaptive=r.sampling == "adaptive",
         )
     result = converge(
         renderer.render,

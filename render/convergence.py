@@ -146,13 +146,16 @@ class ConvergenceSettings:
     ``target``: the raw (un-denoised) relative noise of a converged preview;
     ``first_spp``: samples per half of the first passes (a power of two); ``max_spp``: the
     sample budget, both halves together; ``time_cap_s``: seconds of rendering after which no
-    more samples are added (see the module doc for how this stays reproducible).
+    more samples are added (see the module doc for how this stays reproducible);
+    ``adaptive``: samples where the noise is (else every object pixel gets the same, by the same
+    predictions: the comparison ``printapp bench sampling`` makes).
     """
 
     target: float = NOISE_TARGET
     first_spp: int = 4
     max_spp: int = 4096
     time_cap_s: float = 60.0
+    adaptive: bool = True
 
 
 @dataclass
@@ -462,6 +465,8 @@ def converge(
         goal = (s.target / PREDICTION_MARGIN * float(np.mean(lum[mask]))) ** 2
         if math.isfinite(noise) and goal > 0.0:
             unit = _unit_variance(a, b, have, active, rate)
+            if not s.adaptive:  # every pixel alike: the mean variance, the same counts
+                unit = np.full_like(unit, float(np.mean(unit[measured])) if measured.any() else 1.0)
             want = allocate_samples(
                 unit, have, measured, goal, rate, step=s.first_spp, cap=cap, lanes=lanes_left
             )

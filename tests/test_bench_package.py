@@ -142,7 +142,8 @@ def test_every_stage_has_a_module_named_after_it():
     names = [key.value for key in stages.keys]
     assert names == [
         *("noise", "frames", "lic", "surface", "slice", "mesh", "brdf"),
-        *("pitch", "adaptive", "mie", "pipeline", "fit", "render", "scale", "translucency", "commands"),
+        *("pitch", "adaptive", "mie", "pipeline", "fit", "render", "sampling", "scale", "translucency"),
+        "commands",
         *("solve", "sweep"),
     ]
     for name in names:

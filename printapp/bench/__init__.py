@@ -51,6 +51,7 @@ STAGES: dict[str, Callable[[int], StageResult]] = {
     "pipeline": _lazy("pipeline"),
     "fit": _lazy("fit"),  # photos to noise parameters, beside the random-phase texture
     "render": _lazy("render"),  # model, table and geometry against distance
+    "sampling": _lazy("sampling"),  # adaptive against uniform sampling of CAD previews
     "scale": _lazy("scale"),  # compact model against geometry by relief size, at printer pitch
     "translucency": _lazy("translucency"),  # body albedo, BSSRDF and medium against a converged medium
     "commands": _lazy("commands"),  # whole commands beside PrusaSlicer and Blender

@@ -39,6 +39,7 @@ def directions() -> np.ndarray:
     return direction_from_angles(theta, phi)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("periodic", [True, False])
 def test_peer_mesh_has_the_tracers_first_hits(periodic):
     h = rough_tile(0.8)
@@ -63,6 +64,7 @@ def test_peer_mesh_has_the_tracers_first_hits(periodic):
     assert np.mean(same) >= 0.99
 
 
+@pytest.mark.slow
 def test_embree_agrees_with_the_tracer_in_single_precision():
     pytest.importorskip("embreex")
     from embreex import rtcore_scene

@@ -205,6 +205,7 @@ def marble_fits():
     return fits
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case", MARBLES)
 def test_perlin_marble_period_and_direction_are_recovered_for_every_seed(marble_fits, case):
     period, angle, _, _ = case
@@ -215,6 +216,7 @@ def test_perlin_marble_period_and_direction_are_recovered_for_every_seed(marble_
         assert abs(error) < 5.0
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case", MARBLES)
 def test_clean_marbles_choose_marble_and_get_no_warning(marble_fits, case):
     auto = marble_fits[case]["auto"]
@@ -243,6 +245,7 @@ def test_the_right_marble_scores_above_a_wrong_one():
 # Where fitting fails
 
 
+@pytest.mark.slow
 def test_tiled_floor_bricks_and_constants_are_flagged(tmp_path):
     tiles = fit_photo(SAMPLES / "marble" / "marble_01_512.jpg", max_side=256, budget=16)
     n, rng = 256, np.random.default_rng(0)

@@ -153,6 +153,7 @@ def brushed():
     return design, relief, predicted, frame
 
 
+@pytest.mark.slow
 def test_a_brushed_tile_shows_its_streak_where_the_lobe_says(brushed):
     from printapp.highlight_check import check_highlight, preview_light
 
@@ -172,6 +173,7 @@ def test_a_brushed_tile_shows_its_streak_where_the_lobe_says(brushed):
     assert not unrendered.applied and "rendering is off" in unrendered.sentence
 
 
+@pytest.mark.slow
 def test_the_check_fails_when_the_predicted_direction_is_turned(brushed):
     from printapp.highlight_check import check_highlight, lobe_of
 
@@ -231,6 +233,7 @@ def test_a_brdf_surface_s_azimuth_zero_is_the_world_x_on_every_triangle_of_the_t
         assert np.array(si.sh_frame.n).ravel() == pytest.approx([0.0, 0.0, 1.0], abs=1e-6)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("mode", ["geometry", "model"])
 def test_the_light_sweep_moves_the_lamps_of_one_loaded_scene(brushed, mode):
     """The sweep loads its scene once and moves the soft box between frames: each frame is the one

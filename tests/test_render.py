@@ -56,6 +56,7 @@ def render_box(variant: str) -> float:
     return json.loads(result.stdout.strip().splitlines()[-1])
 
 
+@pytest.mark.slow
 def test_scalar_and_llvm_variants_agree_within_noise():
     from render.mitsuba_adapter import find_libllvm as finder
 

@@ -200,6 +200,7 @@ confirm = 1
 """
 
 
+@pytest.mark.slow
 def test_an_unreachable_target_exits_3_with_the_nearest_point_and_what_binds(tmp_path):
     design = tmp_path / "shiny.toml"
     design.write_text(UNREACHABLE)

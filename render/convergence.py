@@ -45,10 +45,12 @@ The noise figure is unchanged: each pixel's halves keep equal counts, so ``(a_i 
 still its variance, and the figure is measured, never predicted. Every decision is taken from
 the image, never from a clock, so the same scene and seed give the same passes and the same
 image. The one exception is the time cap: the time the second round took (warm: the first also
-compiles) fixes, once, how many samples fit in the cap (their mean per pixel rounded down to
-1, 2, 3, 4, 6, 8, 12..., :func:`_half_octave_floor`). Where that binds (and only there) a
-machine a good deal faster or slower may take a different number of samples; :class:`Converged`
-says whether it did. The time cap counts rendering only, not the denoiser.
+compiles) fixes how many samples fit in the cap (their mean per pixel rounded down to 1, 2, 3,
+4, 6, 8, 12..., :func:`_half_octave_floor`), and each later round fixes it again from its own
+time a sample (the second round is small, and each pass's fixed cost made it foretell too few).
+Where that binds (a round cut short of what the image asked for, or the run stopped by the
+cap), a machine a good deal faster or slower may take a different number of samples;
+:class:`Converged` says whether it did. The time cap counts rendering only, not the denoiser.
 """
 
 from __future__ import annotations
@@ -442,6 +444,8 @@ def converge(
         if affordable < cap:
             budget, limit = max(affordable, n), "time cap"
             lanes_left = max(int(budget * active.size - np.sum(have)), 0)
+        else:  # (a second, better estimate may find that everything fits after all)
+            budget, limit, lanes_left = cap, "sample budget", None
 
     if history[-1][1] > s.target and 2 * n <= cap:
         warm = clock()
@@ -454,7 +458,7 @@ def converge(
         history.append((mean_spp(have), relative_noise(a, b, mask)))
         fit_budget(per_lane)
     stopped = limit
-    timed_again = False
+    truncated = False  # whether the clock's budget cut a round short of what the image asked for
     while True:
         noise = history[-1][1]
         if noise <= s.target:
@@ -470,6 +474,9 @@ def converge(
             want = allocate_samples(
                 unit, have, measured, goal, rate, step=s.first_spp, cap=cap, lanes=lanes_left
             )
+            if lanes_left is not None:
+                free = allocate_samples(unit, have, measured, goal, rate, step=s.first_spp, cap=cap)
+                truncated |= not np.array_equal(want, free)
         else:
             want = np.minimum(2 * have, np.maximum(cap, have))
             if lanes_left is not None and int(np.sum(want - have)) > lanes_left:
@@ -484,13 +491,10 @@ def converge(
         b = add(b, have, want, 1)
         have = want
         if lanes_left is not None:
-            lanes_left -= added
-            if not timed_again:
-                # The second round is small, so each pass's fixed cost weighs on its timing (it
-                # foretold 512 samples a pixel where 880 fitted): the first adaptive round, several
-                # times larger, fixes the budget once more.
-                timed_again = True
-                fit_budget((clock() - began) / (2 * added))
+            # The second round is small, so each pass's fixed cost weighs on its timing (on
+            # part_relief it foretold 512 samples a pixel where 880 fitted): every later, larger
+            # round fixes the budget again from its own time a sample.
+            fit_budget((clock() - began) / (2 * added))
         history.append((mean_spp(have), relative_noise(a, b, mask)))
         stopped = limit
     raw = 0.5 * (a + b)
@@ -517,7 +521,7 @@ def converge(
         stopped=stopped,
         seconds=clock() - start,
         budget_spp=2 * budget,
-        timing_dependent=limit == "time cap" and stopped != "noise target",
+        timing_dependent=truncated or (limit == "time cap" and stopped != "noise target"),
         history=history,
         denoiser=denoiser_name if image is not raw else None,
         time_cap_s=s.time_cap_s,

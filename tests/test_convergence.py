@@ -164,6 +164,30 @@ def test_an_undersampled_preview_does_not_converge_and_says_why():
     assert not timed.converged and timed.stopped == "time cap" and timed.timing_dependent
 
 
+def test_the_time_cap_is_spent_not_foretold_from_the_smallest_round():
+    """Each call into the renderer costs a fixed 0.2 s besides its samples: the second round, a
+    handful of samples a pixel, makes a sample look 50 times dearer than it is. Budgeted from it
+    alone, a 20 s cap stopped after 10 s; timed again after every round, the run spends most of
+    the cap and never more."""
+
+    class Clock:
+        seconds = 0.0
+
+        def __call__(self):
+            return self.seconds
+
+    clock, r = Clock(), Synthetic()
+
+    def render(spp, seed, pixels):
+        clock.seconds += 0.2 + 1e-6 * spp * (r.mask.size if pixels is None else len(pixels))
+        return r(spp, seed, pixels)
+
+    settings = ConvergenceSettings(target=0.005, first_spp=2, max_spp=1 << 14, time_cap_s=20.0)
+    out = converge(render, r.mask, seed=7, settings=settings, clock=clock)
+    assert out.stopped == "time cap" and out.timing_dependent and not out.converged
+    assert 0.6 * settings.time_cap_s < clock.seconds <= settings.time_cap_s
+
+
 def test_denoiser_is_used_only_where_it_helps_and_never_decides():
     r = Synthetic()
     blur = lambda colour, albedo, normal: np.asarray(colour, dtype=np.float64)  # noqa: E731 (identity)

@@ -103,6 +103,14 @@ def sweep_settings(design: Design) -> dict[str, int]:
     return {"frames": SWEEP_FRAMES, "width_px": width, "height_px": height, "spp": spp}
 
 
+def _samples_text(spp: Any, noise: Mapping[str, Any] | None) -> Any:
+    """The preview's samples per pixel: their mean over the object, and their range where they varied."""
+    low, high = (noise or {}).get("spp_range") or (spp, spp)
+    if spp is None or low == high:
+        return spp
+    return f"{spp} on average over the object, from {low} to {high} (more where the noise is)"
+
+
 def _noise_rows(noise: Mapping[str, Any] | None) -> list[tuple[str, Any]]:
     """The preview's noise as the report shows it: raw figure, goal, denoiser, why it stopped."""
     if not noise:
@@ -386,7 +394,7 @@ def report_html(
                     ("relief feature size", f"{r.get('relief_feature_pixels')} pixels"),
                     ("Mitsuba variant", r.get("variant")),
                     ("size", " x ".join(str(v) for v in r.get("size_px", [])) + " px"),
-                    ("samples per pixel", r.get("spp")),
+                    ("samples per pixel", _samples_text(r.get("spp"), r.get("noise"))),
                     *_noise_rows(r.get("noise")),
                 ]
             )

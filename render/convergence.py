@@ -278,6 +278,8 @@ def allocate_samples(
     (n,) int array: the samples per half each pixel should have, at least ``have``.
     """
     have = np.asarray(have, dtype=np.int64)
+    if have.size == 0:
+        return have
     ceiling = np.maximum(cap, have)
     leap = (MAX_LEAP - 1) * int(np.sum(have))
     lanes = leap if lanes is None else min(lanes, leap)
@@ -418,7 +420,9 @@ def converge(
         return out
 
     def mean_spp(have: np.ndarray) -> int:
-        return int(round(2.0 * float(np.mean(have[measured])))) if measured.any() else 2 * int(have.max())
+        if measured.any():
+            return int(round(2.0 * float(np.mean(have[measured]))))
+        return 2 * int(have.max(initial=s.first_spp))  # (no object in view: what every pixel took)
 
     # Round one: every pixel (the background is rendered once); round two doubles the object's
     # samples and times them, warm (round one also compiles Dr.Jit's kernels).

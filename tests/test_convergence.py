@@ -188,6 +188,14 @@ def test_the_time_cap_is_spent_not_foretold_from_the_smallest_round():
     assert 0.6 * settings.time_cap_s < clock.seconds <= settings.time_cap_s
 
 
+def test_an_object_out_of_view_takes_the_first_round_and_no_more():
+    r = Synthetic()
+    empty = np.zeros_like(r.mask)
+    out = converge(r, empty, seed=2, settings=ConvergenceSettings(target=0.005, first_spp=4))
+    assert out.converged and out.noise == 0.0 and out.spp == 8 and out.spp_range == (8, 8)
+    assert all(pixels is None for _, _, pixels in r.calls)
+
+
 def test_denoiser_is_used_only_where_it_helps_and_never_decides():
     r = Synthetic()
     blur = lambda colour, albedo, normal: np.asarray(colour, dtype=np.float64)  # noqa: E731 (identity)

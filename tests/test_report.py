@@ -230,6 +230,19 @@ def test_report_without_a_render_says_so(passed):
     assert text.count("Not rendered in this run.") == 2 and "<img" not in text
 
 
+def test_report_gives_the_samples_and_where_they_varied(passed):
+    design, _, manifest, text = passed
+    noise = manifest["render"]["noise"]
+    low, high = noise["spp_range"]
+    assert low <= manifest["render"]["spp"] <= high
+    varied = {**noise, "spp_range": [40, 2736]}
+    other = report_html(load_design(design), {**manifest, "render": {**manifest["render"], "noise": varied}})
+    assert f"{manifest['render']['spp']} on average over the object, from 40 to 2736" in other
+    alike = {**noise, "spp_range": [manifest["render"]["spp"]] * 2}
+    same = report_html(load_design(design), {**manifest, "render": {**manifest["render"], "noise": alike}})
+    assert f"<th>samples per pixel</th><td>{manifest['render']['spp']}</td>" in same
+
+
 def test_missed_gloss_target_exits_3_and_the_report_says_by_how_much(tmp_path):
     result, _, out = run(tmp_path, "too matte", "[95.0, 100.0]")
     assert result.exit_code == 3

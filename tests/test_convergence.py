@@ -196,6 +196,15 @@ def test_an_object_out_of_view_takes_the_first_round_and_no_more():
     assert all(pixels is None for _, _, pixels in r.calls)
 
 
+def test_the_time_caps_budget_is_rounded_down_to_half_octaves():
+    from render.convergence import _half_octave_floor
+
+    assert [_half_octave_floor(n) for n in (0.5, 1, 2, 2.9, 3, 5, 7, 767, 768, 1023.9, 1024)] == [
+        *(1, 1, 2, 2, 3, 4, 6),
+        *(512, 768, 768, 1024),
+    ]
+
+
 def test_denoiser_is_used_only_where_it_helps_and_never_decides():
     r = Synthetic()
     blur = lambda colour, albedo, normal: np.asarray(colour, dtype=np.float64)  # noqa: E731 (identity)

@@ -41,7 +41,7 @@ times the samples taken (a hot pixel may leap further: the round's total is what
 the rate). Uniform
 sampling needs ``mean(sigma^2)`` where this needs ``mean(sigma)^2``: on the CAD examples, whose
 soft-box glints and caustics hold most of the variance, 2 % takes 1.6-2.1 times fewer samples
-and 1.2-1.7 times less rendering (``printapp bench sampling``).
+and 1.3-1.7 times less rendering (``printapp bench sampling``).
 The noise figure is unchanged: each pixel's halves keep equal counts, so ``(a_i - b_i)^2 / 4`` is
 still its variance, and the figure is measured, never predicted. Every decision is taken from
 the image, never from a clock, so the same scene and seed give the same passes and the same

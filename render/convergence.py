@@ -283,7 +283,7 @@ def allocate_samples(
         return have
     ceiling = np.maximum(cap, have)
     leap = (MAX_LEAP - 1) * int(np.sum(have))
-    lanes = leap if lanes is None else min(lanes, leap)
+    most = leap if lanes is None else min(lanes, leap)  # samples this round may add
     weight = np.asarray(unit_variance, dtype=np.float64) ** (1.0 / (1.0 + 2.0 * rate))
 
     def counts(lam: float) -> np.ndarray:
@@ -294,7 +294,7 @@ def allocate_samples(
         return float(np.mean(unit_variance[measured] * n[measured].astype(np.float64) ** (-2.0 * rate)))
 
     def fits(n: np.ndarray) -> bool:
-        return lanes is None or int(np.sum(n - have)) <= lanes
+        return int(np.sum(n - have)) <= most
 
     def bisect(good: Callable[[float], bool], lo: float, hi: float, smallest: bool) -> float:
         for _ in range(60):

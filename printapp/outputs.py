@@ -210,6 +210,13 @@ class OutputFolder:
     def write_text(self, name: str, text: str) -> None:
         self.write_bytes(name, text.encode("utf-8"))
 
+    def discard(self, name: str) -> None:
+        """Unstage ``name`` (a file written ahead of a verdict that then did not allow it)."""
+        path = self.path(name)
+        if path.exists():
+            path.unlink()
+        self._files.remove(name)
+
     def commit(self) -> list[Path]:
         """Move the staged files into place (see the class); return their final paths."""
         assert self._staging is not None

@@ -11,6 +11,8 @@ import functools
 import json
 import math
 import platform
+import time
+from concurrent.futures import Future
 from dataclasses import dataclass, field
 from importlib import metadata
 from pathlib import Path
@@ -18,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from printapp.background import Background
 from printapp.brdf import brdf_arrays, npz_bytes
 from printapp.cure import describe_constants
 from printapp.design import Design, TileBase
@@ -31,10 +34,18 @@ from printapp.mesh import (
 )
 from printapp.outputs import OutputFolder
 from printapp.progress import StageTimer
-from printapp.relief import as_printed, build_relief, cure_model, cure_spread, fits_printer, slice_tile
+from printapp.relief import (
+    as_printed,
+    build_relief,
+    cure_model,
+    cure_spread,
+    fits_printer,
+    fits_printer_size,
+    slice_tile,
+)
 from render.microfacet import SlopeRoughness, slope_roughness
 from render.mitsuba_adapter import StudioLight
-from slicing import slice_mesh, write_sl1
+from slicing import Slices, slice_mesh, write_sl1
 
 DESIGN_OUTPUTS = (
     "model.stl",
@@ -183,6 +194,61 @@ def _versions() -> dict[str, str]:
     return out
 
 
+STAGES = (
+    "material",
+    "relief",
+    "check",
+    "slice",
+    "as_printed",
+    "write_model",
+    "appearance",
+    "brdf",
+    "report_figure",
+    "render",
+    "sweep",
+    "highlight",
+    "verify",
+    "write",
+    "report",
+)
+"""A design run's stages in the order the manifest lists them (the background ones, timed on
+their own thread, in the order they are started), whatever order they finish in."""
+
+
+def _stage_order(seconds: dict[str, float]) -> dict[str, float]:
+    return {name: seconds[name] for name in STAGES if name in seconds}
+
+
+MODEL_OUTPUTS = ("model.stl", "model.3mf", "slices.sl1")
+
+
+def _write_models(
+    out: OutputFolder,
+    timer: StageTimer,
+    design: Design,
+    mesh: Any,
+    checked: Future[tuple[SolidCheck, Slices | None]],
+    tile_slices: Slices | None,
+) -> list[str]:
+    """Stage the model files (before the verdict, in the background); the names staged."""
+    _, mesh_slices = checked.result()
+    slices = tile_slices if tile_slices is not None else mesh_slices
+    with timer.stage("write_model", "writing the model and slices", background=True):
+        out.write_bytes("model.stl", functools.partial(write_stl, vertices=mesh.vertices, faces=mesh.faces))
+        out.write_bytes("model.3mf", threemf_bytes(mesh.vertices, mesh.faces, design.name))
+        if slices is None:
+            return list(MODEL_OUTPUTS[:2])
+        out.write_bytes("slices.sl1", functools.partial(write_sl1, slices=slices, job_name="slices"))
+    return list(MODEL_OUTPUTS)
+
+
+def _brdf_figure(timer: StageTimer, predicted: Any) -> bytes:
+    from printapp.report_figures import brdf_figure_png
+
+    with timer.stage("report_figure", "BRDF maps for the report", background=True):
+        return brdf_figure_png(predicted)
+
+
 def _finite_or_none(value: float) -> float | None:
     return None if not math.isfinite(value) else round(value, 6)
 
@@ -215,7 +281,12 @@ def run_design(
     from printapp.report import report_html, sweep_settings
     from render.mitsuba_adapter import choose_variant, to_srgb8
 
-    with OutputFolder(out_dir, owned=DESIGN_OUTPUTS.__contains__) as out, StageTimer(quiet=quiet) as timer:
+    with (
+        OutputFolder(out_dir, owned=DESIGN_OUTPUTS.__contains__) as out,
+        StageTimer(quiet=quiet) as timer,
+        Background() as background,
+    ):
+        began = time.perf_counter()
         named_material = None
         if design.material.name is not None:
             from printapp.material_design import derive_design_material, render_choice
@@ -228,27 +299,37 @@ def run_design(
             if design.combine:
                 relief.mesh = combine_solids(relief.mesh, design.combine)
         mesh = relief.mesh
-        with timer.stage("check", "solid checks (trimesh, manifold3d)"):
-            solid = check_solid(mesh)
+        tile = isinstance(design.base, TileBase) and not design.combine
+        size_mm = np.ptp(np.asarray(mesh.vertices), axis=0)
+        fits = fits_printer_size(design, (float(size_mm[0]), float(size_mm[1]), float(size_mm[2])))
+
+        def check_and_slice() -> tuple[SolidCheck, Slices | None]:
+            with timer.stage("check", "solid checks (trimesh, manifold3d)", background=True):
+                solid = check_solid(mesh)
+            if tile or not (solid.ok and fits):
+                return solid, None
+            with timer.stage("slice", "slicing for the printer", background=True):
+                return solid, slice_mesh(
+                    mesh.vertices, mesh.faces, design.printer.profile, layer_height_mm=design.layer_height_mm
+                )
+
+        # Off the critical path: the checks, a mesh's slicing, then the model files, written
+        # ahead of the verdict (and unstaged at the end if it does not allow them).
+        checked = background.submit(check_and_slice)
         slices = printed = None
-        if solid.ok and fits_printer(design, solid):
+        if tile and fits:
+            # A tile's layers come from its height field, not from the mesh the checks look at.
             with timer.stage("slice", "slicing for the printer"):
-                profile_ = design.printer.profile
-                if isinstance(design.base, TileBase) and not design.combine:
-                    slices = slice_tile(design, relief.patch)
-                else:
-                    slices = slice_mesh(
-                        mesh.vertices, mesh.faces, profile_, layer_height_mm=design.layer_height_mm
-                    )
-            if isinstance(design.base, TileBase) and not design.combine:
-                with timer.stage("as_printed", "as-printed relief"):
-                    printed = as_printed(
-                        relief.patch,
-                        slices,
-                        design.base.thickness_mm,
-                        cure_model(design),
-                        cure_spread(design)[0],
-                    )
+                slices = slice_tile(design, relief.patch)
+            with timer.stage("as_printed", "as-printed relief"):
+                printed = as_printed(
+                    relief.patch,
+                    slices,
+                    design.base.thickness_mm,
+                    cure_model(design),
+                    cure_spread(design)[0],
+                )
+        models = background.submit(_write_models, out, timer, design, mesh, checked, slices)
         with timer.stage("appearance", "predicted appearance (slopes)"):
             # From what the printer will make where that is known, else from the design.
             sx, sy = (printed.field if printed is not None else relief.patch).slopes()
@@ -256,6 +337,7 @@ def run_design(
         with timer.stage("brdf", "predicted BRDF (ray traced) and compact model"):
             brdf_field = printed.field if printed is not None else relief.patch
             predicted = predict_for_design(design, brdf_field)
+        brdf_png = background.submit(_brdf_figure, timer, predicted)
         image = None
         choice = None
         preview = None
@@ -286,6 +368,9 @@ def run_design(
                 frame = highlight_frame(
                     design, relief, mesh, predicted, brdf_field, medium=medium, translucency=kind
                 )
+        solid, mesh_slices = checked.result()
+        slices = slices if tile else mesh_slices
+        written_models = models.result()
         with timer.stage("verify", "verification"):
             passed, failed = verify(
                 design,
@@ -303,20 +388,14 @@ def run_design(
             if highlight.applied:
                 (passed if highlight.ok else failed).append(highlight.sentence)
         ok = not failed
+        if not (ok or force):
+            for name in written_models:
+                out.discard(name)
         with timer.stage("write", "writing outputs"):
             if image is not None:
                 out.write_bytes("preview.png", png_bytes(to_srgb8(image)))
             out.write_text("design.resolved.toml", resolved_toml(design))
             out.write_bytes("brdf.npz", npz_bytes(brdf_arrays(predicted)))
-            if ok or force:
-                out.write_bytes(
-                    "model.stl", functools.partial(write_stl, vertices=mesh.vertices, faces=mesh.faces)
-                )
-                out.write_bytes("model.3mf", threemf_bytes(mesh.vertices, mesh.faces, design.name))
-                if slices is not None:
-                    out.write_bytes(
-                        "slices.sl1", functools.partial(write_sl1, slices=slices, job_name="slices")
-                    )
         profile = design.printer.profile
         lo, hi = solid.bbox_min_mm, solid.bbox_max_mm
         grid = list(relief.patch.shape) if isinstance(design.base, TileBase) else None
@@ -329,7 +408,8 @@ def run_design(
                 "brdf": design.brdf.seed,
                 "render": design.render.seed,
             },
-            "stages_s": dict(timer.seconds),
+            "stages_s": _stage_order(timer.seconds),
+            "stages_in_background": [name for name in STAGES if name in timer.background],
             "triangles": solid.triangles,
             "vertices": int(len(mesh.vertices)),
             "watertight": solid.watertight,
@@ -422,6 +502,7 @@ def run_design(
         }
         staged = [n for n in DESIGN_OUTPUTS[:-2] if out.path(n).exists()] + ["report.html"]
         manifest["outputs"] = [*staged, "manifest.json"]
+        manifest["wall_s"] = round(time.perf_counter() - began, 4)  # (so far: the report shows it)
         with timer.stage("report", "report (report.html)"):
             out.write_text(
                 "report.html",
@@ -429,12 +510,14 @@ def run_design(
                     design,
                     manifest,
                     appearance=predicted,
+                    brdf_png=brdf_png.result(),
                     preview_png=out.path("preview.png").read_bytes() if image is not None else None,
                     sweep_png=None if sweep is None else png_bytes(to_srgb8(sweep)),
                     highlight_png=None if frame is None else png_bytes(to_srgb8(frame)),
                 ),
             )
-        manifest["stages_s"] = dict(timer.seconds)
+        manifest["stages_s"] = _stage_order(timer.seconds)
+        manifest["wall_s"] = round(time.perf_counter() - began, 4)
         out.write_text("manifest.json", json.dumps(manifest, indent=2) + "\n")
         written = sorted(out.commit(), key=lambda path: DESIGN_OUTPUTS.index(path.name))
     return Outcome(

@@ -17,6 +17,8 @@ class StageTimer:
 
     def __init__(self, quiet: bool = False, console: Console | None = None) -> None:
         self.seconds: dict[str, float] = {}
+        self.background: set[str] = set()
+        """The stages timed on a background thread, alongside the others (:mod:`printapp.background`)."""
         self.console = console or Console(stderr=True)
         self._progress = Progress(
             SpinnerColumn(),
@@ -36,9 +38,12 @@ class StageTimer:
         self._progress.stop()
 
     @contextmanager
-    def stage(self, name: str, label: str) -> Iterator[None]:
-        """Time the block as stage ``name``; show ``label`` while it runs."""
-        check_interrupt()  # a Ctrl-C that a dependency swallowed stops the run here
+    def stage(self, name: str, label: str, background: bool = False) -> Iterator[None]:
+        """Time the block as stage ``name``; show ``label`` while it runs. A ``background`` stage
+        runs beside the others (its seconds overlap theirs)."""
+        check_interrupt()
+        if background:
+            self.background.add(name)  # a Ctrl-C that a dependency swallowed stops the run here
         task = self._progress.add_task(label, total=None)
         start = time.perf_counter()
         try:

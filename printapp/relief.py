@@ -271,7 +271,12 @@ def slice_tile(design: Design, patch: HeightField) -> Slices:
 
 def fits_printer(design: Design, solid: SolidCheck) -> bool:
     """Whether the model fits the printer's display and height, in either orientation."""
+    return fits_printer_size(design, solid.size_mm)
+
+
+def fits_printer_size(design: Design, size_mm: tuple[float, float, float]) -> bool:
+    """Whether a model of this bounding box (mm) fits the printer, in either orientation."""
     profile = design.printer.profile
-    sx, sy, sz = solid.size_mm
+    sx, sy, sz = size_mm
     w, d = profile.display_width_mm, profile.display_height_mm
     return ((sx <= w and sy <= d) or (sx <= d and sy <= w)) and sz <= profile.max_print_height_mm

@@ -292,6 +292,7 @@ def report_html(
     manifest: Mapping[str, Any],
     *,
     appearance: Any = None,
+    brdf_png: bytes | None = None,
     preview_png: bytes | None = None,
     sweep_png: bytes | None = None,
     sweep_frames: int = SWEEP_FRAMES,
@@ -307,6 +308,9 @@ def report_html(
         The run's ``manifest.json`` content (:func:`printapp.pipeline.run_design`).
     appearance : render.appearance.Appearance, optional
         The predicted BRDF table and fitted model, for the hemispherical maps.
+    brdf_png : bytes, optional
+        Those maps already drawn (:func:`printapp.report_figures.brdf_figure_png` of
+        ``appearance``), as a run draws them in the background.
     preview_png, sweep_png : bytes, optional
         The preview and the light-sweep strip (``sweep_frames`` frames side by side) as
         PNG files; both are embedded as data URIs.
@@ -442,7 +446,8 @@ def report_html(
         "less, grey where no traced ray landed. With few rays the table is speckled by noise.</p>"
     )
     if appearance is not None:
-        add(_image(brdf_figure_png(appearance), "BRDF maps: traced table, fitted model, difference", ""))
+        maps = brdf_png if brdf_png is not None else brdf_figure_png(appearance)
+        add(_image(maps, "BRDF maps: traced table, fitted model, difference", ""))
     else:
         add("<p><em>No BRDF was predicted in this run.</em></p>")
     if fit:
@@ -556,20 +561,24 @@ def report_html(
 
     # Timings.
     stages = m.get("stages_s") or {}
-    total = sum(stages.values()) or 1.0
+    beside = set(m.get("stages_in_background") or [])
+    wall = m.get("wall_s")
+    total = wall or sum(stages.values()) or 1.0
     add('<h2 id="timings">Timings</h2>')
     add(
         '<p class="explain">Wall-clock seconds per stage of this run (they vary between runs and '
-        "machines; everything else in this report does not).</p>"
+        "machines; everything else in this report does not). Stages marked <em>background</em> ran "
+        "on a second thread beside the others, so the stages add up to more than the run took.</p>"
     )
     rows = "".join(
-        f'<tr><td>{_e(k)}</td><td class="num">{s:.2f}</td>'
-        f'<td><span class="bar" style="width:{300.0 * s / total:.0f}px"></span></td></tr>'
+        f'<tr><td>{_e(k)}</td><td class="num">{s:.2f}</td><td>{"background" if k in beside else ""}</td>'
+        f'<td><span class="bar" style="width:{300.0 * min(s / total, 1.0):.0f}px"></span></td></tr>'
         for k, s in stages.items()
     )
     add(
-        f"<table><tr><th>stage</th><th>seconds</th><th>share</th></tr>{rows}"
-        f'<tr><th>total</th><td class="num">{sum(stages.values()):.2f}</td><td></td></tr></table>'
+        f"<table><tr><th>stage</th><th>seconds</th><th>thread</th><th>share</th></tr>{rows}"
+        f"<tr><th>{'the run, start to end' if wall else 'total'}</th>"
+        f'<td class="num">{total:.2f}</td><td></td><td></td></tr></table>'
     )
 
     # Versions.

@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-import io
 import math
 from collections.abc import Sequence
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -29,6 +29,63 @@ def _nearest_directions(wi: np.ndarray, wanted_deg: Sequence[tuple[float, float]
     return sorted(chosen, key=lambda k: (-wi[k, 2], k))
 
 
+_COLORMAPS: dict[str, np.ndarray] = {}
+
+
+def colormap(name: str) -> np.ndarray:
+    """A colour map of the report (``magma`` or ``RdBu_r``): ``(256, 3)`` uint8 sRGB, matplotlib's
+    colours as ``printapp/data/colormaps.toml`` keeps them (``scripts/make-colormaps.py``)."""
+    if not _COLORMAPS:
+        import tomllib
+        from importlib.resources import files
+
+        data = tomllib.loads(files("printapp").joinpath("data/colormaps.toml").read_text())
+        for key, value in data.items():
+            _COLORMAPS[key] = np.frombuffer(bytes.fromhex(value), dtype=np.uint8).reshape(256, 3)
+    return _COLORMAPS[name]
+
+
+def log_colours(values: np.ndarray, vmin: float, vmax: float, name: str) -> np.ndarray:
+    """``values`` through a logarithmic scale from ``vmin`` to ``vmax`` into colour map ``name``:
+    uint8 RGB, ``values.shape + (3,)``. Values off the scale take its end colours; as matplotlib's
+    ``LogNorm`` and ``Colormap`` do (index ``floor(256 t)``, at most 255)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = (np.log(values) - math.log(vmin)) / (math.log(vmax) - math.log(vmin))
+    index = np.clip(np.floor(np.nan_to_num(t, nan=0.0, neginf=0.0, posinf=1.0) * 256.0), 0, 255)
+    return colormap(name)[index.astype(np.intp)]
+
+
+def _log_ticks(vmin: float, vmax: float) -> list[float]:
+    """1, 2 and 5 times the powers of ten within [vmin, vmax] (the colour bar's labels)."""
+    ticks = []
+    for power in range(math.floor(math.log10(vmin)), math.ceil(math.log10(vmax)) + 1):
+        for sub in (1.0, 2.0, 5.0):
+            value = sub * 10.0**power
+            if vmin <= value <= vmax:
+                ticks.append(value)
+    return ticks
+
+
+def _font(size: int) -> Any:
+    """DejaVu Sans (matplotlib's own font, found without importing matplotlib), else Pillow's."""
+    from importlib.util import find_spec
+
+    from PIL import ImageFont
+
+    spec = find_spec("matplotlib")
+    for folder in (spec.submodule_search_locations or []) if spec is not None else []:
+        path = Path(folder) / "mpl-data" / "fonts" / "ttf" / "DejaVuSans.ttf"
+        if path.is_file():
+            return ImageFont.truetype(str(path), size)
+    return ImageFont.load_default(size=size)
+
+
+DISC_PX = 169
+"""Diameter of each hemispherical map (pixels): one pixel a little over a degree of polar angle."""
+EMPTY_RGB = (187, 187, 187)
+"""Where the tracer left a bin empty (the difference map)."""
+
+
 def brdf_figure_png(
     appearance: Any, directions_deg: Sequence[tuple[float, float]] = BRDF_DIRECTIONS_DEG
 ) -> bytes:
@@ -41,16 +98,17 @@ def brdf_figure_png(
     ``1/RATIO_RANGE`` to ``RATIO_RANGE``, labelled as a relative difference. Bins the
     tracer left empty are grey in the difference map.
 
+    Drawn with Pillow (the maps are arrays of colours; the rings, labels and colour bars are
+    placed by hand): matplotlib's import and figure cost a design run about a second.
+
     Parameters
     ----------
     appearance : render.appearance.Appearance
         Its ``table`` (:class:`render.gonio.BrdfTable`) and ``fit.model``.
     """
-    from matplotlib.cm import ScalarMappable
-    from matplotlib.colors import LogNorm
-    from matplotlib.figure import Figure
-    from matplotlib.ticker import FixedFormatter, FixedLocator, FuncFormatter, LogLocator, NullFormatter
+    from PIL import Image, ImageDraw
 
+    from printapp.exporters import png_bytes
     from render.tabulated_bins import model_bins
 
     table = appearance.table
@@ -70,23 +128,12 @@ def brdf_figure_png(
     vmin = float(np.percentile(positive, 2)) if positive.size else 1e-3
     top = reliable if reliable.size else positive
     vmax = max(float(np.percentile(top, 99.5)) if top.size else 1.0, 10.0 * vmin)
-    f_norm = LogNorm(vmin=vmin, vmax=vmax)
-    r_norm = LogNorm(vmin=1.0 / RATIO_RANGE, vmax=RATIO_RANGE)
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = np.where(traced > 0, fitted / traced, np.nan)
     ratio = np.clip(ratio, 1.0 / RATIO_RANGE, RATIO_RANGE)
 
-    # Placed by hand (inches): a constrained layout spent half the figure's time on text.
-    width_in, height_in = 9.0, 3.0 * len(rows) + 1.0
-    fig = Figure(figsize=(width_in, height_in), dpi=80)
-
-    def box(left_in: float, bottom_in: float, w_in: float, h_in: float) -> tuple[float, float, float, float]:
-        return left_in / width_in, bottom_in / height_in, w_in / width_in, h_in / height_in
-
-    # Each map is the bins looked up on a disc of pixels (radius = polar angle), drawn as an
-    # image: polar pcolormesh of nine maps of 20,000 bins took a second to save.
-    size = 161
-    axis = np.linspace(-90.0, 90.0, size)
+    # Each map is the bins looked up on a disc of pixels (radius = polar angle).
+    axis = np.linspace(-90.0, 90.0, DISC_PX)
     xx, yy = np.meshgrid(axis, axis[::-1])
     radius_deg = np.hypot(xx, yy)
     inside = radius_deg < 90.0
@@ -97,65 +144,95 @@ def brdf_figure_png(
     phi_bin = np.clip(np.searchsorted(table.phi_o_edges, phi, side="right") - 1, 0, None)
     theta_bin = np.minimum(theta_bin, len(table.theta_o_edges) - 2)
     phi_bin = np.minimum(phi_bin, len(table.phi_o_edges) - 2)
-    circle = np.linspace(0.0, 2.0 * math.pi, 181)
-    f_mesh = r_mesh = None
+
+    column_px, row_px, bars_px = 240, 240, 80
+    width, height = 3 * column_px, row_px * len(rows) + bars_px
+    canvas = np.full((height, width, 3), 255, dtype=np.uint8)
+    scale = DISC_PX / 180.0  # pixels per degree
+    centres = []
     for i in range(len(rows)):
+        panels = (
+            log_colours(np.clip(traced[i], vmin, None), vmin, vmax, "magma"),
+            log_colours(np.clip(fitted[i], vmin, None), vmin, vmax, "magma"),
+            log_colours(ratio[i], 1.0 / RATIO_RANGE, RATIO_RANGE, "RdBu_r"),
+        )
+        for j, colours in enumerate(panels):
+            disc = colours[theta_bin, phi_bin]
+            if j == 2:
+                disc[np.isnan(ratio[i])[theta_bin, phi_bin]] = EMPTY_RGB
+            cx, cy = column_px * j + column_px // 2, row_px * i + 50 + DISC_PX // 2
+            window = canvas[
+                cy - DISC_PX // 2 : cy - DISC_PX // 2 + DISC_PX,
+                cx - DISC_PX // 2 : cx - DISC_PX // 2 + DISC_PX,
+            ]
+            window[inside] = disc[inside]
+            centres.append((i, j, cx, cy))
+    image = Image.fromarray(canvas)
+    draw = ImageDraw.Draw(image)
+    font, small = _font(11), _font(10)
+    names = ("traced table f", "compact model f", "model vs traced")
+    for i, j, cx, cy in centres:
         theta_i = math.degrees(math.acos(float(np.clip(wi[i, 2], -1.0, 1.0))))
         phi_i = math.degrees(math.atan2(wi[i, 1], wi[i, 0])) % 360.0
-        label = f"light from {theta_i:.0f}° polar, {phi_i:.0f}° azimuth"
-        panels = (
-            (traced[i], f_norm, "magma", "traced table f"),
-            (fitted[i], f_norm, "magma", "compact model f"),
-            (ratio[i], r_norm, "RdBu_r", "model vs traced"),
+        title = f"{names[j]}\nlight from {theta_i:.0f}° polar, {phi_i:.0f}° azimuth"
+        draw.multiline_text(
+            (cx, cy - DISC_PX // 2 - 46), title, fill=(0, 0, 0), font=font, anchor="ma", align="center"
         )
-        for j, (values, norm, cmap, name) in enumerate(panels):
-            ax = fig.add_axes(box(3.0 * j + 0.2, height_in - 3.0 * (i + 1) + 0.05, 2.6, 2.5))
-            shown = np.clip(values, vmin, None) if norm is f_norm else values
-            disc = shown[theta_bin, phi_bin]
-            mappable = ScalarMappable(norm=norm, cmap=cmap)
-            rgba = mappable.to_rgba(np.where(np.isnan(disc), 1.0, disc))
-            rgba[inside & np.isnan(disc)] = (0.733, 0.733, 0.733, 1.0)  # bins the tracer left empty
-            rgba[~inside] = (1.0, 1.0, 1.0, 0.0)
-            ax.imshow(rgba, extent=(-90, 90, -90, 90), interpolation="nearest")
-            if norm is f_norm:
-                f_mesh = mappable
-            else:
-                r_mesh = mappable
-            for ring in (30.0, 60.0, 90.0):
-                ax.plot(ring * np.cos(circle), ring * np.sin(circle), color="0.6", linewidth=0.5)
-            for angle in (0, 90, 180, 270):
-                ax.text(
-                    (104 if angle % 180 == 0 else 98) * math.cos(math.radians(angle)),
-                    98 * math.sin(math.radians(angle)),
-                    f"{angle}°",
-                    fontsize=7,
-                    ha="center",
-                    va="center",
-                )
-            ax.set_xlim(-116, 116)
-            ax.set_ylim(-106, 106)
-            ax.set_aspect("equal")
-            ax.axis("off")
-            ax.set_title(f"{name}\n{label}", fontsize=8)
-    f_bar = fig.colorbar(
-        f_mesh,
-        cax=fig.add_axes(box(0.8, 0.55, 4.4, 0.18)),
-        orientation="horizontal",
-        extend="max",
-        label="BRDF f (1/sr), log scale",
+        for ring_deg in (30.0, 60.0, 90.0):
+            r = ring_deg * scale
+            draw.ellipse((cx - r, cy - r, cx + r, cy + r), outline=(153, 153, 153), width=1)
+        for angle, (dx, dy, anchor) in {
+            0: (90 * scale + 4, 0, "lm"),
+            90: (0, -90 * scale - 3, "mb"),
+            180: (-90 * scale - 4, 0, "rm"),
+            270: (0, 90 * scale + 3, "mt"),
+        }.items():
+            draw.text((cx + dx, cy + dy), f"{angle}°", fill=(0, 0, 0), font=small, anchor=anchor)
+
+    def colour_bar(left: int, right: int, lo: float, hi: float, name: str) -> tuple[int, int, int]:
+        top_px, bar_h = row_px * len(rows) + 12, 14
+        t = np.linspace(0.0, 1.0, right - left, endpoint=False) + 0.5 / (right - left)
+        values = np.exp(math.log(lo) + t * (math.log(hi) - math.log(lo)))
+        strip = np.repeat(log_colours(values, lo, hi, name)[None], bar_h, axis=0)
+        canvas_bar = Image.fromarray(strip)
+        image.paste(canvas_bar, (left, top_px))
+        draw.rectangle((left, top_px, right - 1, top_px + bar_h - 1), outline=(0, 0, 0))
+        return top_px, bar_h, right - left
+
+    def tick(
+        left: int, span: int, top_px: int, bar_h: int, lo: float, hi: float, value: float, text: str
+    ) -> None:
+        x = left + span * (math.log(value) - math.log(lo)) / (math.log(hi) - math.log(lo))
+        draw.line((x, top_px + bar_h, x, top_px + bar_h + 3), fill=(0, 0, 0))
+        draw.text((x, top_px + bar_h + 4), text, fill=(0, 0, 0), font=small, anchor="ma")
+
+    left, right = 64, 400
+    top_px, bar_h, span = colour_bar(left, right, vmin, vmax, "magma")
+    # (An arrow at the right end: the brightest bins saturate the scale.)
+    tip = top_px + bar_h // 2
+    draw.polygon(
+        [(right, top_px), (right + 12, tip), (right, top_px + bar_h - 1)],
+        fill=tuple(int(c) for c in colormap("magma")[255]),
+        outline=(0, 0, 0),
     )
-    f_bar.ax.xaxis.set_major_locator(LogLocator(base=10.0, subs=(1.0, 2.0, 5.0)))
-    f_bar.ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
-    f_bar.ax.xaxis.set_minor_formatter(NullFormatter())
-    bar = fig.colorbar(
-        r_mesh,
-        cax=fig.add_axes(box(6.3, 0.55, 2.4, 0.18)),
-        orientation="horizontal",
-        label="model vs traced, log scale",
+    for value in _log_ticks(vmin, vmax):
+        tick(left, span, top_px, bar_h, vmin, vmax, value, f"{value:g}")
+    draw.text(
+        ((left + right) / 2, top_px + bar_h + 20),
+        "BRDF f (1/sr), log scale",
+        fill=(0, 0, 0),
+        font=font,
+        anchor="ma",
     )
-    bar.ax.xaxis.set_major_locator(FixedLocator([0.25, 0.5, 1.0, 2.0, 4.0]))
-    bar.ax.xaxis.set_major_formatter(FixedFormatter(["-75%", "-50%", "0", "+100%", "+300%"]))
-    bar.ax.xaxis.set_minor_locator(FixedLocator([]))
-    buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", metadata={"Software": None})
-    return buffer.getvalue()
+    left, right = 488, 680
+    top_px, bar_h, span = colour_bar(left, right, 1.0 / RATIO_RANGE, RATIO_RANGE, "RdBu_r")
+    for value, text in zip((0.25, 0.5, 1.0, 2.0, 4.0), ("-75%", "-50%", "0", "+100%", "+300%"), strict=True):
+        tick(left, span, top_px, bar_h, 1.0 / RATIO_RANGE, RATIO_RANGE, value, text)
+    draw.text(
+        ((left + right) / 2, top_px + bar_h + 20),
+        "model vs traced, log scale",
+        fill=(0, 0, 0),
+        font=font,
+        anchor="ma",
+    )
+    return png_bytes(np.asarray(image))

@@ -203,6 +203,7 @@ STAGES = (
     "write_model",
     "appearance",
     "brdf",
+    "brdf_analytic",
     "report_figure",
     "render",
     "sweep",
@@ -240,6 +241,13 @@ def _write_models(
             return list(MODEL_OUTPUTS[:2])
         out.write_bytes("slices.sl1", functools.partial(write_sl1, slices=slices, job_name="slices"))
     return list(MODEL_OUTPUTS)
+
+
+def _analytic_fit(timer: StageTimer, design: Design, predicted: Any) -> Any:
+    from printapp.rendering import analytic_for_design
+
+    with timer.stage("brdf_analytic", "analytic BRDF fit beside the compact model", background=True):
+        return analytic_for_design(design, predicted)
 
 
 def _brdf_figure(timer: StageTimer, predicted: Any) -> bytes:
@@ -336,7 +344,9 @@ def run_design(
             appearance = slope_roughness(sx, sy)
         with timer.stage("brdf", "predicted BRDF (ray traced) and compact model"):
             brdf_field = printed.field if printed is not None else relief.patch
-            predicted = predict_for_design(design, brdf_field)
+            predicted = predict_for_design(design, brdf_field, analytic=False)
+        # The analytic fit beside the compact model is for the files and the report only.
+        fitted = background.submit(_analytic_fit, timer, design, predicted)
         brdf_png = background.submit(_brdf_figure, timer, predicted)
         image = None
         choice = None
@@ -369,6 +379,7 @@ def run_design(
                     design, relief, mesh, predicted, brdf_field, medium=medium, translucency=kind
                 )
         solid, mesh_slices = checked.result()
+        predicted = fitted.result()
         slices = slices if tile else mesh_slices
         written_models = models.result()
         with timer.stage("verify", "verification"):

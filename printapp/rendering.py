@@ -112,8 +112,10 @@ def tracer_options(design: Design) -> dict[str, Any]:
     }
 
 
-def predict_for_design(design: Design, field: HeightField) -> Appearance:
-    """The predicted appearance (:func:`render.appearance.predict_appearance`) of a design's relief."""
+def predict_for_design(design: Design, field: HeightField, analytic: bool = True) -> Appearance:
+    """The predicted appearance (:func:`render.appearance.predict_appearance`) of a design's relief;
+    without ``analytic``, the analytic fit beside the compact model is left to
+    :func:`analytic_for_design`."""
     from render.appearance import predict_appearance
 
     return predict_appearance(
@@ -121,6 +123,16 @@ def predict_for_design(design: Design, field: HeightField) -> Appearance:
         **tracer_options(design),
         distribution=design.brdf.distribution,
         lobe_error_target=design.brdf.lobe_error,
+        analytic=analytic,
+    )
+
+
+def analytic_for_design(design: Design, predicted: Appearance) -> Appearance:
+    """``predicted`` with its analytic fit (:func:`render.appearance.with_analytic_fit`)."""
+    from render.appearance import with_analytic_fit
+
+    return with_analytic_fit(
+        predicted, ior=design.material.refractive_index, distribution=design.brdf.distribution
     )
 
 

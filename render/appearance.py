@@ -25,7 +25,7 @@ metrics say so, with a warning.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -187,6 +187,7 @@ def predict_appearance(
     distribution: str = "auto",
     lobe_error_target: float | None = None,
     max_rays: int = 100_000_000,
+    analytic: bool = True,
 ) -> Appearance:
     """Trace a relief's BRDF, read gloss and haze off it, and fit the compact model.
 
@@ -206,6 +207,10 @@ def predict_appearance(
         (:func:`render.gonio.rays_for_lobe_error`), capped at ``max_rays``; the budget is
         refined from each run until every direction meets the target (at most four
         runs). A matte lobe at normal incidence needs far more rays than a grazing one.
+    analytic : bool
+        Whether to fit the analytic GGX or Beckmann model beside the compact one now; without
+        it, ``metrics["fit_analytic"]`` is None until :func:`with_analytic_fit` adds it (a design
+        run fits it on its background thread: nothing the preview needs depends on it).
     periodic : bool
         Whether the relief tiles seamlessly; a patch cut from a larger relief does not.
 
@@ -262,17 +267,6 @@ def predict_appearance(
         periodic=periodic,
     )
     haze, haze_reason = haze_index(gloss)
-    analytic = fit_microfacet(
-        wi,
-        table.f,
-        table.f_specular,
-        table.stderr_specular,
-        table.theta_o_edges,
-        table.phi_o_edges,
-        ior=ior,
-        distribution=distribution,
-        stderr=table.stderr,
-    )
     normal = int(np.argmin(inc[:, 0]))
     # The compact model: the facets the tracer saw (on a patch, those of the window it lit
     # at the most normal incidence), the resin's index and the body's albedo.
@@ -319,21 +313,44 @@ def predict_appearance(
             "table_noise": _finite(fit.table_noise),
             "bins": fit.bins_used,
         },
-        "fit_analytic": {
-            **analytic.model.as_dict(),
-            "relative_error": _finite(analytic.relative_error),
-            "table_noise": _finite(analytic.table_noise),
-            "bins": analytic.bins_used,
-        },
+        "fit_analytic": None,
         "representation": representation,
         "warnings": warnings,
         "rays_per_direction": [int(r) for r in table.rays],
         "lobe_error": [_finite(float(e)) for e in lobe_errors],
         "lost_fraction": float(np.max(np.concatenate([table.lost, gloss_table.lost]))),
     }
-    return Appearance(
-        table=table, gloss_table=gloss_table, fit=fit, metrics=metrics, analytic=analytic, model_f=model_f
+    predicted = Appearance(table=table, gloss_table=gloss_table, fit=fit, metrics=metrics, model_f=model_f)
+    return with_analytic_fit(predicted, ior=ior, distribution=distribution) if analytic else predicted
+
+
+def with_analytic_fit(appearance: Appearance, *, ior: float = 1.5, distribution: str = "auto") -> Appearance:
+    """``appearance`` with the analytic GGX or Beckmann fit (:func:`render.brdf_fit.fit_microfacet`)
+    to its traced table beside the compact model, in ``analytic`` and ``metrics["fit_analytic"]``."""
+    table = appearance.table
+    inc = np.asarray(appearance.metrics["incident_deg"], dtype=np.float64).reshape(-1, 2)
+    # The directions as the table was asked for them (its own are renormalised, and the fit
+    # moves with their last bits; tests/test_brdf.py holds the two ways equal).
+    wi = direction_from_angles(np.radians(inc[:, 0]), np.radians(inc[:, 1]))
+    analytic = fit_microfacet(
+        wi,
+        table.f,
+        table.f_specular,
+        table.stderr_specular,
+        table.theta_o_edges,
+        table.phi_o_edges,
+        ior=ior,
+        distribution=distribution,
+        stderr=table.stderr,
     )
+    metrics = dict(appearance.metrics)  # (the key keeps its place: the manifest's order is fixed)
+    metrics["fit_analytic"] = {
+        **analytic.model.as_dict(),
+        "relative_error": _finite(analytic.relative_error),
+        "table_noise": _finite(analytic.table_noise),
+        "bins": analytic.bins_used,
+    }
+    return replace(appearance, analytic=analytic, metrics=metrics)
 
 
 def model_or_table(fit: FitResult) -> tuple[dict[str, Any], list[str]]:

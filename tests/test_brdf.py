@@ -434,3 +434,21 @@ def test_sampled_lobe_kernel_equals_the_plain_numpy_version(distribution, au, av
     plain = lobe_sampled_plain(distribution, au, av, azimuth, 1.5, wis, theta_edges, phi_edges, 128)
     np.testing.assert_allclose(ours, plain, rtol=1e-12, atol=1e-12 * plain.max())
     assert plain.sum() > 0
+
+
+def test_analytic_fit_added_later_is_the_one_fitted_at_once():
+    # A design run fits the analytic model on its background thread, after the rest: the same
+    # numbers, bit for bit, as fitting it inside predict_appearance (the fit moves with the
+    # last bits of the incident directions, so they must be the ones the table was asked for).
+    from render.appearance import with_analytic_fit
+
+    rng = np.random.default_rng(5)
+    heights = 0.02 * gaussian_filter(rng.standard_normal((96, 96)), 3.0, mode="wrap")
+    field = HeightField(heights, 4.0, 4.0)
+    at_once = predict_appearance(field, rays=20_000, n_theta=18, n_phi=36, seed=3)
+    later = predict_appearance(field, rays=20_000, n_theta=18, n_phi=36, seed=3, analytic=False)
+    assert later.metrics["fit_analytic"] is None and later.analytic is None
+    later = with_analytic_fit(later, ior=1.5)
+    assert later.metrics == at_once.metrics
+    assert list(later.metrics) == list(at_once.metrics)  # the manifest's keys in the same order
+    assert later.analytic.model == at_once.analytic.model

@@ -12,11 +12,12 @@ import json
 import math
 import platform
 import time
+from collections.abc import Callable
 from concurrent.futures import Future
 from dataclasses import dataclass, field
 from importlib import metadata
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 
@@ -46,6 +47,8 @@ from printapp.relief import (
 from render.microfacet import SlopeRoughness, slope_roughness
 from render.mitsuba_adapter import StudioLight
 from slicing import Slices, slice_mesh, write_sl1
+
+T = TypeVar("T")
 
 DESIGN_OUTPUTS = (
     "model.stl",
@@ -199,13 +202,14 @@ STAGES = (
     "relief",
     "check",
     "slice",
+    "winding",
     "as_printed",
-    "write_model",
     "appearance",
     "brdf",
     "brdf_analytic",
     "report_figure",
     "render",
+    "write_model",
     "sweep",
     "highlight",
     "verify",
@@ -228,11 +232,11 @@ def _write_models(
     timer: StageTimer,
     design: Design,
     mesh: Any,
-    checked: Future[tuple[SolidCheck, Slices | None]],
+    checked: Future[tuple[SolidCheck, Slices | None, float | None]],
     tile_slices: Slices | None,
 ) -> list[str]:
     """Stage the model files (before the verdict, in the background); the names staged."""
-    _, mesh_slices = checked.result()
+    _, mesh_slices, _ = checked.result()
     slices = tile_slices if tile_slices is not None else mesh_slices
     with timer.stage("write_model", "writing the model and slices", background=True):
         out.write_bytes("model.stl", functools.partial(write_stl, vertices=mesh.vertices, faces=mesh.faces))
@@ -241,6 +245,12 @@ def _write_models(
             return list(MODEL_OUTPUTS[:2])
         out.write_bytes("slices.sl1", functools.partial(write_sl1, slices=slices, job_name="slices"))
     return list(MODEL_OUTPUTS)
+
+
+def _staged(timer: StageTimer, name: str, label: str, fn: Callable[[], T]) -> T:
+    """``fn()`` timed as the background stage ``name``."""
+    with timer.stage(name, label, background=True):
+        return fn()
 
 
 def _analytic_fit(timer: StageTimer, design: Design, predicted: Any) -> Any:
@@ -311,15 +321,17 @@ def run_design(
         size_mm = np.ptp(np.asarray(mesh.vertices), axis=0)
         fits = fits_printer_size(design, (float(size_mm[0]), float(size_mm[1]), float(size_mm[2])))
 
-        def check_and_slice() -> tuple[SolidCheck, Slices | None]:
+        def check_and_slice() -> tuple[SolidCheck, Slices | None, float | None]:
             with timer.stage("check", "solid checks (trimesh, manifold3d)", background=True):
                 solid = check_solid(mesh)
             if tile or not (solid.ok and fits):
-                return solid, None
+                return solid, None, None
             with timer.stage("slice", "slicing for the printer", background=True):
-                return solid, slice_mesh(
+                sliced = slice_mesh(
                     mesh.vertices, mesh.faces, design.printer.profile, layer_height_mm=design.layer_height_mm
                 )
+            with timer.stage("winding", "the layers' winding numbers", background=True):
+                return solid, sliced, sliced.max_winding()
 
         # Off the critical path: the checks, a mesh's slicing, then the model files, written
         # ahead of the verdict (and unstaged at the end if it does not allow them).
@@ -337,7 +349,18 @@ def run_design(
                     cure_model(design),
                     cure_spread(design)[0],
                 )
-        models = background.submit(_write_models, out, timer, design, mesh, checked, slices)
+        tile_winding = (
+            background.submit(_staged, timer, "winding", "the layers' winding numbers", slices.max_winding)
+            if slices is not None
+            else None
+        )
+
+        def write_models() -> Future[list[str]]:
+            return background.submit(_write_models, out, timer, design, mesh, checked, slices)
+
+        # The model files are staged once the preview has met its noise goal (what most often
+        # fails a run), beside the light sweep; unstaged again if anything else fails.
+        models = None if render else write_models()
         with timer.stage("appearance", "predicted appearance (slopes)"):
             # From what the printer will make where that is known, else from the design.
             sx, sy = (printed.field if printed is not None else relief.patch).slopes()
@@ -363,6 +386,8 @@ def run_design(
                     design, relief, mesh, predicted, brdf_field, medium=medium, translucency=kind
                 )
                 image = preview.image
+            if force or noise_summary(preview)[0]:
+                models = write_models()
             with timer.stage("sweep", "light sweep for the report"):
                 sweep = light_sweep(
                     design,
@@ -378,10 +403,10 @@ def run_design(
                 frame = highlight_frame(
                     design, relief, mesh, predicted, brdf_field, medium=medium, translucency=kind
                 )
-        solid, mesh_slices = checked.result()
+        solid, mesh_slices, mesh_winding = checked.result()
         predicted = fitted.result()
         slices = slices if tile else mesh_slices
-        written_models = models.result()
+        winding = tile_winding.result() if tile_winding is not None else mesh_winding
         with timer.stage("verify", "verification"):
             passed, failed = verify(
                 design,
@@ -391,7 +416,6 @@ def run_design(
                 predicted.metrics,
                 preview_noise=None if preview is None else noise_summary(preview),
             )
-            winding = slices.max_winding() if slices is not None else None
             if winding is not None:
                 overlap = winding_verdict(winding)
                 (passed if overlap.ok else failed).append(overlap.message)
@@ -399,6 +423,9 @@ def run_design(
             if highlight.applied:
                 (passed if highlight.ok else failed).append(highlight.sentence)
         ok = not failed
+        if models is None and (ok or force):
+            models = write_models()  # (a run whose preview missed its goal, forced)
+        written_models = models.result() if models is not None else []
         if not (ok or force):
             for name in written_models:
                 out.discard(name)

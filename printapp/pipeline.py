@@ -206,9 +206,9 @@ STAGES = (
     "as_printed",
     "appearance",
     "brdf",
+    "render",
     "brdf_analytic",
     "report_figure",
-    "render",
     "write_model",
     "sweep",
     "highlight",
@@ -359,7 +359,9 @@ def run_design(
             return background.submit(_write_models, out, timer, design, mesh, checked, slices)
 
         # The model files are staged once the preview has met its noise goal (what most often
-        # fails a run), beside the light sweep; unstaged again if anything else fails.
+        # fails a run), beside the light sweep; unstaged again if anything else fails. The
+        # checks and a mesh's slicing run beside the BRDF (they are usually done before the
+        # preview starts).
         models = None if render else write_models()
         with timer.stage("appearance", "predicted appearance (slopes)"):
             # From what the printer will make where that is known, else from the design.
@@ -368,9 +370,6 @@ def run_design(
         with timer.stage("brdf", "predicted BRDF (ray traced) and compact model"):
             brdf_field = printed.field if printed is not None else relief.patch
             predicted = predict_for_design(design, brdf_field, analytic=False)
-        # The analytic fit beside the compact model is for the files and the report only.
-        fitted = background.submit(_analytic_fit, timer, design, predicted)
-        brdf_png = background.submit(_brdf_figure, timer, predicted)
         image = None
         choice = None
         preview = None
@@ -386,8 +385,13 @@ def run_design(
                     design, relief, mesh, predicted, brdf_field, medium=medium, translucency=kind
                 )
                 image = preview.image
-            if force or noise_summary(preview)[0]:
-                models = write_models()
+        # After the preview, not beside it: its rounds' timing sets the time cap's budget. The
+        # analytic fit beside the compact model is for the files and the report only.
+        fitted = background.submit(_analytic_fit, timer, design, predicted)
+        brdf_png = background.submit(_brdf_figure, timer, predicted)
+        if render and (force or (preview is not None and noise_summary(preview)[0])):
+            models = write_models()
+        if render:
             with timer.stage("sweep", "light sweep for the report"):
                 sweep = light_sweep(
                     design,

@@ -577,7 +577,7 @@ def report_html(
     )
     add(
         f"<table><tr><th>stage</th><th>seconds</th><th>thread</th><th>share</th></tr>{rows}"
-        f"<tr><th>{'the run, start to end' if wall else 'total'}</th>"
+        f"<tr><th>{'the run, until this report' if wall else 'total'}</th>"
         f'<td class="num">{total:.2f}</td><td></td><td></td></tr></table>'
     )
 

@@ -137,3 +137,9 @@ def test_gate_passes_met_targets_and_fails_missed_ones_with_the_miss(tmp_path, s
     assert result.exit_code == 3
     assert "gloss_60" in result.output and "misses the target [150, 200] by" in result.output
     assert not (tmp_path / "missed" / "model.stl").exists()
+    # The model files were staged ahead of the verdict (the preview met its goal) and unstaged:
+    # none is left, listed or hidden, and the folder holds exactly what the manifest says.
+    listed = json.loads((tmp_path / "missed" / "manifest.json").read_text())["outputs"]
+    assert not {"model.stl", "model.3mf", "slices.sl1"} & set(listed)
+    assert sorted(p.name for p in (tmp_path / "missed").iterdir()) == sorted(listed)
+    assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []

@@ -189,50 +189,36 @@ def brdf_figure_png(
         }.items():
             draw.text((cx + dx, cy + dy), f"{angle}°", fill=(0, 0, 0), font=small, anchor=anchor)
 
-    def colour_bar(left: int, right: int, lo: float, hi: float, name: str) -> tuple[int, int, int]:
+    def colour_bar(
+        left: int, right: int, lo: float, hi: float, name: str, ticks: list[tuple[float, str]], label: str
+    ) -> tuple[int, int]:
+        """A horizontal bar of colour map ``name`` on a log scale from ``lo`` to ``hi``, with its
+        ticks and label below; returns its top and height (pixels)."""
         top_px, bar_h = row_px * len(rows) + 12, 14
-        t = np.linspace(0.0, 1.0, right - left, endpoint=False) + 0.5 / (right - left)
+        span = right - left
+        t = np.linspace(0.0, 1.0, span, endpoint=False) + 0.5 / span
         values = np.exp(math.log(lo) + t * (math.log(hi) - math.log(lo)))
-        strip = np.repeat(log_colours(values, lo, hi, name)[None], bar_h, axis=0)
-        canvas_bar = Image.fromarray(strip)
-        image.paste(canvas_bar, (left, top_px))
+        image.paste(
+            Image.fromarray(np.repeat(log_colours(values, lo, hi, name)[None], bar_h, axis=0)), (left, top_px)
+        )
         draw.rectangle((left, top_px, right - 1, top_px + bar_h - 1), outline=(0, 0, 0))
-        return top_px, bar_h, right - left
-
-    def tick(
-        left: int, span: int, top_px: int, bar_h: int, lo: float, hi: float, value: float, text: str
-    ) -> None:
-        x = left + span * (math.log(value) - math.log(lo)) / (math.log(hi) - math.log(lo))
-        draw.line((x, top_px + bar_h, x, top_px + bar_h + 3), fill=(0, 0, 0))
-        draw.text((x, top_px + bar_h + 4), text, fill=(0, 0, 0), font=small, anchor="ma")
+        for value, text in ticks:
+            x = left + span * (math.log(value) - math.log(lo)) / (math.log(hi) - math.log(lo))
+            draw.line((x, top_px + bar_h, x, top_px + bar_h + 3), fill=(0, 0, 0))
+            draw.text((x, top_px + bar_h + 4), text, fill=(0, 0, 0), font=small, anchor="ma")
+        middle = ((left + right) / 2, top_px + bar_h + 20)
+        draw.text(middle, label, fill=(0, 0, 0), font=font, anchor="ma")
+        return top_px, bar_h
 
     left, right = 64, 400
-    top_px, bar_h, span = colour_bar(left, right, vmin, vmax, "magma")
+    ticks = [(value, f"{value:g}") for value in _log_ticks(vmin, vmax)]
+    top_px, bar_h = colour_bar(left, right, vmin, vmax, "magma", ticks, "BRDF f (1/sr), log scale")
     # (An arrow at the right end: the brightest bins saturate the scale.)
-    tip = top_px + bar_h // 2
     draw.polygon(
-        [(right, top_px), (right + 12, tip), (right, top_px + bar_h - 1)],
+        [(right, top_px), (right + 12, top_px + bar_h // 2), (right, top_px + bar_h - 1)],
         fill=tuple(int(c) for c in colormap("magma")[255]),
         outline=(0, 0, 0),
     )
-    for value in _log_ticks(vmin, vmax):
-        tick(left, span, top_px, bar_h, vmin, vmax, value, f"{value:g}")
-    draw.text(
-        ((left + right) / 2, top_px + bar_h + 20),
-        "BRDF f (1/sr), log scale",
-        fill=(0, 0, 0),
-        font=font,
-        anchor="ma",
-    )
-    left, right = 488, 680
-    top_px, bar_h, span = colour_bar(left, right, 1.0 / RATIO_RANGE, RATIO_RANGE, "RdBu_r")
-    for value, text in zip((0.25, 0.5, 1.0, 2.0, 4.0), ("-75%", "-50%", "0", "+100%", "+300%"), strict=True):
-        tick(left, span, top_px, bar_h, 1.0 / RATIO_RANGE, RATIO_RANGE, value, text)
-    draw.text(
-        ((left + right) / 2, top_px + bar_h + 20),
-        "model vs traced, log scale",
-        fill=(0, 0, 0),
-        font=font,
-        anchor="ma",
-    )
+    ratio_ticks = list(zip((0.25, 0.5, 1.0, 2.0, 4.0), ("-75%", "-50%", "0", "+100%", "+300%"), strict=True))
+    colour_bar(488, 680, 1.0 / RATIO_RANGE, RATIO_RANGE, "RdBu_r", ratio_ticks, "model vs traced, log scale")
     return png_bytes(np.asarray(image))

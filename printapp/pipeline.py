@@ -333,8 +333,7 @@ def run_design(
             with timer.stage("winding", "the layers' winding numbers", background=True):
                 return solid, sliced, sliced.max_winding()
 
-        # Off the critical path: the checks, a mesh's slicing, then the model files, written
-        # ahead of the verdict (and unstaged at the end if it does not allow them).
+        # Off the critical path, from now on: the checks, and a mesh's slicing.
         checked = background.submit(check_and_slice)
         slices = printed = None
         if tile and fits:

@@ -120,11 +120,49 @@ def onb(
     return (b1[0], b2[0]) if single else (b1, b2)
 
 
+@njit(cache=True, parallel=True)
+def _face_normals_and_angles(
+    verts: np.ndarray, tris: np.ndarray, normal: np.ndarray, angle: np.ndarray
+) -> None:
+    for f in prange(tris.shape[0]):
+        for k in range(3):
+            a, b, c = tris[f, k], tris[f, (k + 1) % 3], tris[f, (k + 2) % 3]
+            e1x, e1y, e1z = verts[b, 0] - verts[a, 0], verts[b, 1] - verts[a, 1], verts[b, 2] - verts[a, 2]
+            e2x, e2y, e2z = verts[c, 0] - verts[a, 0], verts[c, 1] - verts[a, 1], verts[c, 2] - verts[a, 2]
+            cx, cy, cz = e1y * e2z - e1z * e2y, e1z * e2x - e1x * e2z, e1x * e2y - e1y * e2x
+            sine = math.sqrt(cx * cx + cy * cy + cz * cz)
+            if k == 0:  # the face's normal, from its first corner (as the faces' own orientation)
+                length = max(sine, 1e-300)
+                normal[f, 0], normal[f, 1], normal[f, 2] = cx / length, cy / length, cz / length
+            # The corner's angle from both its sine and cosine: exact for slivers too, where the
+            # arc cosine of a cosine near 1 loses half its digits.
+            angle[f, k] = math.atan2(sine, e1x * e2x + e1y * e2y + e1z * e2z)
+
+
+@njit(cache=True)
+def _accumulate_normals(tris: np.ndarray, normal: np.ndarray, angle: np.ndarray, out: np.ndarray) -> None:
+    # Serial, in face order: a vertex's sum is added up in the same order on any thread count.
+    for f in range(tris.shape[0]):
+        for k in range(3):
+            v = tris[f, k]
+            out[v, 0] += normal[f, 0] * angle[f, k]
+            out[v, 1] += normal[f, 1] * angle[f, k]
+            out[v, 2] += normal[f, 2] * angle[f, k]
+    for v in range(out.shape[0]):
+        length = max(math.sqrt(out[v, 0] ** 2 + out[v, 1] ** 2 + out[v, 2] ** 2), 1e-300)
+        out[v, 0] /= length
+        out[v, 1] /= length
+        out[v, 2] /= length
+
+
 def angle_weighted_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """Unit vertex pseudo-normals: face normals weighted by the face's angle at the vertex.
 
     Thürmer & Wüthrich (1998); Bærentzen & Aanæs (2005) show these make inside and
     outside tests on a closed mesh consistent (the talk's choice of vertex normal).
+    Numba kernels: the faces' normals and corner angles (``atan2(|e1 x e2|, e1 . e2)``) in
+    parallel, then their sums in face order (the same bits on any thread count);
+    ``printapp/bench/reference/vertex_normals.py`` is the plain numpy version it is tested against.
 
     Parameters
     ----------
@@ -135,21 +173,18 @@ def angle_weighted_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarra
     -------
     (n, 3) float64 array; vertices used by no face get (0, 0, 0).
     """
-    verts = np.asarray(vertices, dtype=np.float64)
-    tris = np.asarray(faces, dtype=np.int64)
-    tri = verts[tris]
-    face_n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    face_n /= np.maximum(np.linalg.norm(face_n, axis=1, keepdims=True), 1e-300)
+    verts = np.ascontiguousarray(vertices, dtype=np.float64)
+    tris = np.ascontiguousarray(faces, dtype=np.int64)
+    if verts.ndim != 2 or verts.shape[1] != 3:
+        raise ValueError(f"vertices: expected an (n, 3) array, got shape {verts.shape}")
+    if tris.ndim != 2 or tris.shape[1] != 3 or (tris.size and (tris.min() < 0 or tris.max() >= len(verts))):
+        raise ValueError("faces: expected an (m, 3) array of vertex indices")
+    face_normal = np.empty((len(tris), 3))
+    corner_angle = np.empty((len(tris), 3))
+    _face_normals_and_angles(verts, tris, face_normal, corner_angle)
     normals = np.zeros_like(verts)
-    for k in range(3):
-        e1 = tri[:, (k + 1) % 3] - tri[:, k]
-        e2 = tri[:, (k + 2) % 3] - tri[:, k]
-        cos = np.einsum("ij,ij->i", e1, e2) / np.maximum(
-            np.linalg.norm(e1, axis=1) * np.linalg.norm(e2, axis=1), 1e-300
-        )
-        angle = np.arccos(np.clip(cos, -1.0, 1.0))
-        np.add.at(normals, tris[:, k], face_n * angle[:, None])
-    return normals / np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-300)
+    _accumulate_normals(tris, face_normal, corner_angle, normals)
+    return normals
 
 
 def vertex_frames(

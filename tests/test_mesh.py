@@ -8,8 +8,11 @@ from noise.frames import angle_weighted_normals
 from noise.heightfield import HeightField
 from printapp.errors import DesignError
 from printapp.mesh import (
+    bisect_long_edges,
     check_solid,
+    crease_weights,
     displace_along_normals,
+    folded_triangles,
     load_closed_mesh,
     refine_to_edge_length,
     slab_from_heightfield,
@@ -59,6 +62,64 @@ def test_angle_weighted_normals_of_a_cube_point_along_the_diagonals():
     normals = angle_weighted_normals(cube.vertices, cube.faces)
     expected = cube.vertices / np.linalg.norm(cube.vertices, axis=1, keepdims=True)
     np.testing.assert_allclose(normals, expected, atol=1e-12)
+
+
+def test_angle_weighted_normals_are_the_plain_numpy_ones_on_a_cad_part_with_slivers():
+    from printapp.bench.reference.vertex_normals import angle_weighted_normals_plain
+
+    mesh = load_closed_mesh(DATA / "featuretype.STL", scale=5.0)
+    refined = refine_to_edge_length(mesh, 2.0)
+    for v, f in ((mesh.vertices, mesh.faces), (refined.vertices, refined.faces)):
+        edges = np.linalg.norm(np.roll(v[f], -1, axis=1) - v[f], axis=2)
+        # (the part's fillets carry triangles a hundred times longer than they are wide)
+        assert np.max(edges.max(axis=1) / edges.min(axis=1)) > 100
+        np.testing.assert_allclose(
+            angle_weighted_normals(v, f), angle_weighted_normals_plain(v, f), atol=1e-10
+        )
+    lonely = np.vstack([mesh.vertices, [[1e3, 0.0, 0.0]]])  # a vertex of no face
+    assert np.all(angle_weighted_normals(lonely, mesh.faces)[-1] == 0.0)
+
+
+@pytest.mark.parametrize("edge_mm", [4.0, 1.0, 0.37])
+def test_bisection_makes_trimeshs_triangles_in_trimeshs_order(edge_mm):
+    mesh = load_closed_mesh(DATA / "featuretype.STL", scale=5.0)
+    theirs = trimesh.remesh.subdivide_to_size(
+        mesh.vertices, mesh.faces, max_edge=edge_mm, max_iter=40, return_index=True
+    )
+    ours = bisect_long_edges(mesh.vertices, mesh.faces, edge_mm)
+    # The same corners, bit for bit, face by face (the midpoints are numbered differently).
+    np.testing.assert_array_equal(ours[0][ours[1]], theirs[0][theirs[1]])
+    np.testing.assert_array_equal(ours[2], theirs[2])
+    assert len(ours[0]) == len(theirs[0])
+    refined = trimesh.Trimesh(ours[0], ours[1], process=False)
+    assert refined.is_watertight and refined.is_winding_consistent
+    assert refined.edges_unique_length.max() <= edge_mm
+    with pytest.raises(ValueError, match="after 1 rounds"):
+        bisect_long_edges(mesh.vertices, mesh.faces, edge_mm / 8, max_rounds=1)
+
+
+def test_crease_weights_and_folds_are_the_numpy_formulas():
+    mesh = load_closed_mesh(DATA / "featuretype.STL", scale=5.0)
+    refined = refine_to_edge_length(mesh, 2.0)
+    v, f = np.asarray(refined.vertices), np.asarray(refined.faces)
+    normals = angle_weighted_normals(v, f)
+    face_n = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+    unit = face_n / np.linalg.norm(face_n, axis=1, keepdims=True)
+    worst = np.ones(len(v))
+    for k in range(3):
+        np.minimum.at(worst, f[:, k], np.einsum("ij,ij->i", normals[f[:, k]], unit))
+    t = np.clip(
+        (worst - np.cos(np.radians(30.0))) / (np.cos(np.radians(10.0)) - np.cos(np.radians(30.0))), 0, 1
+    )
+    np.testing.assert_allclose(crease_weights(v, f, normals), t * t * (3 - 2 * t), atol=1e-12)
+    assert 0.0 < np.mean(t == 1.0) < 1.0  # both smooth and creased vertices
+    moved = v.copy()
+    moved[f[:5, 0]] = 2 * moved[f[:5, 1]] - moved[f[:5, 0]]  # mirror a corner through the next: folds
+    after = trimesh.Trimesh(moved, f, process=False)
+    turned = np.einsum(
+        "ij,ij->i", face_n, np.cross(moved[f[:, 1]] - moved[f[:, 0]], moved[f[:, 2]] - moved[f[:, 0]])
+    )
+    assert folded_triangles(refined, after) == int(np.sum(turned <= 0)) > 0
 
 
 def test_displacing_a_closed_mesh_keeps_it_closed():
@@ -139,9 +200,9 @@ def test_admesh_finds_nothing_to_fix(tmp_path):
     mesh = slab_from_heightfield(HeightField(rng.uniform(0, 0.3, (40, 50)), 0.1, 0.1), 1.0)
     path = tmp_path / "slab.stl"
     path.write_bytes(stl_bytes(mesh.vertices, mesh.faces))
-    report = subprocess.run(
-        ["admesh", "--exact", str(path)], capture_output=True, text=True, check=True
-    ).stdout
+    # (ADMesh prints the 80-byte header as a C string, running on into the facet data's bytes.)
+    report = subprocess.run(["admesh", "--exact", str(path)], capture_output=True, check=True).stdout
+    report = report.decode("utf-8", errors="replace")
     assert re.search(r"Total disconnected facets\s*:\s*0\s", report)
     assert re.search(r"Facets reversed\s*:\s*0\s", report)
     assert re.search(r"Backwards edges\s*:\s*0\s", report)

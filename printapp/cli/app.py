@@ -118,7 +118,10 @@ def _root(
 
 
 def main() -> None:
-    """Console-script entry point: the app, with Ctrl-C and SIGTERM ending it cleanly (exit 130, 143)."""
+    """Console-script entry point: the app, with Ctrl-C and SIGTERM ending it cleanly (exit 130, 143).
+
+    A command that ends (with any exit code) leaves the process through :func:`_exit_now`.
+    """
     from printapp.interrupts import Interrupted, install_handlers, received
 
     install_handlers()
@@ -126,12 +129,44 @@ def main() -> None:
         app()
     except Interrupted as exc:
         err.print(f"{exc.name}; no partial outputs were left")
-        sys.exit(exc.exit_code)
-    except SystemExit:
+        _exit_now(exc.exit_code)
+    except SystemExit as done:
         signum = received()
         if signum is None:
-            raise
+            _exit_now(done.code)
         # The signal was swallowed somewhere below, but every output was held back.
         stopped = Interrupted(signum)
         err.print(f"{stopped.name}; no partial outputs were left")
-        sys.exit(stopped.exit_code)
+        _exit_now(stopped.exit_code)
+
+
+def _exit_now(code: object) -> None:
+    """End the process as ``sys.exit(code)`` would, without tearing the interpreter down.
+
+    Everything a normal exit runs that can matter still runs, in the same order: the wait for
+    other threads (and the thread pools' own exit), the ``atexit`` handlers (temporary
+    folders, logging) and flushing the standard streams. What is skipped is freeing every
+    module and extension one by one, which numba's LLVM, trimesh and Mitsuba made about 0.5 s
+    of every command (measured: 0.50 s from the last line to the process's end, 0.03 s
+    without it), a quarter of ``printapp slice`` on a small model.
+    """
+    import atexit
+    import contextlib
+    import os
+    import threading
+
+    if code is None:
+        status = 0
+    elif isinstance(code, int):
+        status = code
+    else:  # sys.exit("message"): print it, exit 1, as Python does
+        print(code, file=sys.stderr)
+        status = 1
+    shutdown = getattr(threading, "_shutdown", None)  # joins the non-daemon threads, as exit does
+    if shutdown is not None:
+        shutdown()
+    atexit._run_exitfuncs()
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(OSError, ValueError):  # a closed pipe: nothing more can reach it
+            stream.flush()
+    os._exit(status)

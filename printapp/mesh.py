@@ -450,23 +450,26 @@ def displace_along_normals(mesh: trimesh.Trimesh, offsets_mm: np.ndarray) -> tup
 
 
 @njit(cache=True)
+def _corner_cross(vertices, a, b, c):
+    """``(v_b - v_a) x (v_c - v_a)`` as three floats (no array is made)."""
+    e1x, e1y, e1z = (
+        vertices[b, 0] - vertices[a, 0],
+        vertices[b, 1] - vertices[a, 1],
+        vertices[b, 2] - vertices[a, 2],
+    )
+    e2x, e2y, e2z = (
+        vertices[c, 0] - vertices[a, 0],
+        vertices[c, 1] - vertices[a, 1],
+        vertices[c, 2] - vertices[a, 2],
+    )
+    return e1y * e2z - e1z * e2y, e1z * e2x - e1x * e2z, e1x * e2y - e1y * e2x
+
+
+@njit(cache=True)
 def _worst_face_cosine(vertices, faces, normals, worst) -> None:
     """``worst[v]``: the least cosine between vertex v's normal and the unit normals of its faces."""
     for f in range(faces.shape[0]):
-        a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
-        e1x, e1y, e1z = (
-            vertices[b, 0] - vertices[a, 0],
-            vertices[b, 1] - vertices[a, 1],
-            vertices[b, 2] - vertices[a, 2],
-        )
-        e2x, e2y, e2z = (
-            vertices[c, 0] - vertices[a, 0],
-            vertices[c, 1] - vertices[a, 1],
-            vertices[c, 2] - vertices[a, 2],
-        )
-        nx = e1y * e2z - e1z * e2y
-        ny = e1z * e2x - e1x * e2z
-        nz = e1x * e2y - e1y * e2x
+        nx, ny, nz = _corner_cross(vertices, faces[f, 0], faces[f, 1], faces[f, 2])
         length = max(math.sqrt(nx * nx + ny * ny + nz * nz), 1e-300)
         for k in range(3):
             v = faces[f, k]
@@ -478,40 +481,14 @@ def _worst_face_cosine(vertices, faces, normals, worst) -> None:
 @njit(cache=True, parallel=True)
 def _face_cross(vertices, faces, out) -> None:
     for f in prange(faces.shape[0]):
-        a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
-        e1x, e1y, e1z = (
-            vertices[b, 0] - vertices[a, 0],
-            vertices[b, 1] - vertices[a, 1],
-            vertices[b, 2] - vertices[a, 2],
-        )
-        e2x, e2y, e2z = (
-            vertices[c, 0] - vertices[a, 0],
-            vertices[c, 1] - vertices[a, 1],
-            vertices[c, 2] - vertices[a, 2],
-        )
-        out[f, 0] = e1y * e2z - e1z * e2y
-        out[f, 1] = e1z * e2x - e1x * e2z
-        out[f, 2] = e1x * e2y - e1y * e2x
+        out[f, 0], out[f, 1], out[f, 2] = _corner_cross(vertices, faces[f, 0], faces[f, 1], faces[f, 2])
 
 
 @njit(cache=True, parallel=True)
 def _turned_over(before, vertices, faces, out) -> None:
     """``out[f]``: whether face f's normal at ``vertices`` points against ``before[f]`` (or vanishes)."""
     for f in prange(faces.shape[0]):
-        a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
-        e1x, e1y, e1z = (
-            vertices[b, 0] - vertices[a, 0],
-            vertices[b, 1] - vertices[a, 1],
-            vertices[b, 2] - vertices[a, 2],
-        )
-        e2x, e2y, e2z = (
-            vertices[c, 0] - vertices[a, 0],
-            vertices[c, 1] - vertices[a, 1],
-            vertices[c, 2] - vertices[a, 2],
-        )
-        nx = e1y * e2z - e1z * e2y
-        ny = e1z * e2x - e1x * e2z
-        nz = e1x * e2y - e1y * e2x
+        nx, ny, nz = _corner_cross(vertices, faces[f, 0], faces[f, 1], faces[f, 2])
         out[f] = before[f, 0] * nx + before[f, 1] * ny + before[f, 2] * nz <= 0.0
 
 

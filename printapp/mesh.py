@@ -212,7 +212,7 @@ def bisect_long_edges(
         sub, sub_long = tris[touched], long[touched]
         ends = np.stack([sub, np.roll(sub, -1, axis=1)], axis=2)[sub_long]  # (k, 2) long edges
         low, high = ends.min(axis=1), ends.max(axis=1)
-        keys, first, inverse = np.unique(low * len(verts) + high, return_index=True, return_inverse=True)
+        _, first, inverse = np.unique(low * len(verts) + high, return_index=True, return_inverse=True)
         mid_ids = np.full(sub.shape, -1, dtype=np.int64)
         mid_ids[sub_long] = len(verts) + inverse.reshape(-1)
         pairs = np.stack([low[first], high[first]], axis=1)

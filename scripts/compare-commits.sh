@@ -4,12 +4,15 @@
 #   bash scripts/compare-commits.sh REV REPEATS ARGS...
 #   e.g. bash scripts/compare-commits.sh 5adbedc 4 demo
 #        bash scripts/compare-commits.sh 5adbedc 1 design examples/part_relief.toml --force
+#        OUT_EXT=.sl1 bash scripts/compare-commits.sh 98f5701 5 slice /path/to/model.stl
 #
+# OUT_EXT is appended to the output's name (`slice` writes a file that must end in .sl1;
+# `demo` and `design` write a folder, the default).
 # REV is checked out into a temporary worktree that runs on this checkout's .venv (its
 # packages first on PYTHONPATH), its numba kernels compiled once into its own cache before
 # any timing. Each repeat runs REV, then the working tree, so that a load on the machine falls
 # on both alike (the machine is shared: compare the two medians, never a single time).
-# Outputs go to temporary folders; prints each time and the two medians.
+# Outputs go to temporary folders (or files); prints each time and the two medians.
 set -euo pipefail
 rev=$1
 repeats=$2
@@ -31,7 +34,7 @@ for _ in $(seq "$repeats"); do
     for which in rev now; do
         if [ "$which" = rev ]; then tree="$base/tree"; else tree="$root"; fi
         start=$(date +%s.%N)
-        (cd "$tree" && PYTHONPATH="$tree" "$python" -m printapp "${args[@]}" -o "$base/out-$which" --quiet \
+        (cd "$tree" && PYTHONPATH="$tree" "$python" -m printapp "${args[@]}" -o "$base/out-$which${OUT_EXT:-}" --quiet \
             >/dev/null 2>&1) || echo "($which exited $?)"
         seconds=$(awk -v a="$start" -v b="$(date +%s.%N)" 'BEGIN {printf "%.2f", b - a}')
         echo "$which $seconds"

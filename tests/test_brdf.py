@@ -114,6 +114,7 @@ def smith_comparison(rms_slope: float) -> tuple[float, float, MicrofacetBRDF]:
     return chi2, err, model
 
 
+@pytest.mark.slow
 def test_gaussian_surface_at_low_roughness_is_the_smith_beckmann_brdf():
     chi2, err, model = smith_comparison(0.05)  # alpha ~ 0.07
     assert 0.06 < model.alpha_u < 0.08
@@ -122,6 +123,7 @@ def test_gaussian_surface_at_low_roughness_is_the_smith_beckmann_brdf():
     assert err < 0.05
 
 
+@pytest.mark.slow
 def test_smith_model_error_grows_with_roughness_as_multiple_scattering_grows():
     # Documented limit: at alpha ~ 0.3 and 0.5 the single-scattering Smith model is off by
     # about 8 % and 12 % (multiple bounces and the Smith approximation at grazing angles).
@@ -151,6 +153,7 @@ def test_white_body_conserves_energy_and_nothing_exceeds_one():
     assert np.all(t.albedo < 1.0) and np.all(t.f >= 0.0)
 
 
+@pytest.mark.slow
 def test_reciprocity_f_wi_wo_equals_f_wo_wi():
     h = gaussian_surface(0.2, n=512, corr_px=2.0, seed=5)
     # Directions at bin centres (2 x 4 degree bins), so each lands in the other's bin.
@@ -234,6 +237,7 @@ def test_the_highlight_does_not_depend_on_how_cells_are_triangulated():
     assert 270.0 - z2 == pytest.approx(z0, abs=0.2)  # mirrored about the diagonal x = y
 
 
+@pytest.mark.slow
 def test_ridges_stretch_the_highlight_across_them_and_the_metrics_say_so():
     n = 256
     x = np.arange(n)
@@ -436,6 +440,7 @@ def test_sampled_lobe_kernel_equals_the_plain_numpy_version(distribution, au, av
     assert plain.sum() > 0
 
 
+@pytest.mark.slow
 def test_analytic_fit_added_later_is_the_one_fitted_at_once():
     # A design run fits the analytic model on its background thread, after the rest: the same
     # numbers, bit for bit, as fitting it inside predict_appearance (the fit moves with the

@@ -79,6 +79,7 @@ def test_slab_multipole_against_a_random_walk_in_a_slab():
         )
 
 
+@pytest.mark.slow
 def test_thick_slab_is_the_dipole_and_totals_are_the_profiles_integrals():
     r = np.array([0.0, 0.5, 1.0, 3.0])
     reflect, transmit = slab_profiles(r, 0.99, 0.01, 0.0, 1.3, 300.0)

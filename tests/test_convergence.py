@@ -238,6 +238,7 @@ def _box_scene(width=64, height=48):
     return scene
 
 
+@pytest.mark.slow
 def test_render_halves_are_independent_and_their_noise_is_the_true_noise():
     """The estimate of two 16-sample halves against the error of their mean to a 2,048-sample reference."""
     from render.progressive import SampleRenderer
@@ -274,6 +275,7 @@ def test_render_halves_are_independent_and_their_noise_is_the_true_noise():
         dr.set_thread_count(threads)
 
 
+@pytest.mark.slow
 def test_denoised_preview_agrees_with_the_converged_reference():
     """Open Image Denoise on a smooth scene: the denoised preview is within 2 % of the converged one."""
     from printapp.denoiser import open_image_denoise

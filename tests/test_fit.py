@@ -115,6 +115,7 @@ def test_structure_tensor_finds_stripes():
     assert dominant_orientation(np.random.default_rng(0).random((96, 96)))[1] < 0.1
 
 
+@pytest.mark.slow
 def test_noise_psd_has_the_impulse_process_shape():
     from printapp.bench.noise import analytic_slice_spectrum
 
@@ -324,6 +325,7 @@ def test_bad_options_exit_2(tmp_path):
 # From photo to print
 
 
+@pytest.mark.slow
 def test_fit_writes_fragment_preview_metrics_and_the_fragment_renders_the_same(tmp_path):
     toml, png, metrics = tmp_path / "fitted.toml", tmp_path / "fit.png", tmp_path / "metrics.json"
     result = fit_cli(MARBLE[3], "--size", 96, "--budget", 16, "-o", toml, "--preview", png, "--json", metrics)
@@ -362,6 +364,7 @@ def test_fit_writes_fragment_preview_metrics_and_the_fragment_renders_the_same(t
     assert toml2.read_bytes() == toml.read_bytes()
 
 
+@pytest.mark.slow
 def test_the_search_does_not_depend_on_the_workers_or_on_the_seed_beyond_the_noise():
     photo = read_photo(MARBLE[2], 128)
     one = fit_photo(photo, model="veined", budget=16, workers=1).reports["veined"]

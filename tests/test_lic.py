@@ -149,6 +149,7 @@ def test_critical_points_borders_and_nan_fields_give_finite_output():
         np.testing.assert_allclose(zero, tex, atol=1e-6)
 
 
+@pytest.mark.slow
 def test_results_do_not_depend_on_the_thread_count(tmp_path):
     import os
     import subprocess

@@ -371,6 +371,7 @@ def test_translucency_choice():
 # --- command line and designs --------------------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_material_command_json_table_and_plot(tmp_path):
     result = runner.invoke(app, ["material", "white-resin", "--json", "-p", "tio2_volume_fraction=0.001"])
     assert result.exit_code == 0, result.output

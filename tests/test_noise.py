@@ -17,6 +17,7 @@ def test_matches_slow_reference(mode):
     assert np.std(fast) > 0.01
 
 
+@pytest.mark.slow
 def test_statistics_of_values():
     rng = np.random.default_rng(0)
     pts = rng.uniform(-500, 500, size=(1_000_000, 3))
@@ -141,6 +142,7 @@ def test_grid_paths_equal_the_point_paths(plain):
     )
 
 
+@pytest.mark.slow
 def test_thread_count_does_not_change_a_single_bit(tmp_path):
     import subprocess
     import sys

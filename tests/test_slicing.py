@@ -225,6 +225,7 @@ def test_layers_match_prusaslicer(tmp_path, lshape):
         assert np.abs(a - b)[edge].mean() < 2.0
 
 
+@pytest.mark.slow
 def test_round_trip_gives_back_the_rendered_layers(lshape):
     slices = slice_mesh(lshape.vertices, lshape.faces, SL1)
     expected = [slices.display_image(slices.grey(coverage)).copy() for _, coverage in slices.coverages()]

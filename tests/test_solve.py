@@ -135,6 +135,7 @@ def test_the_surrogate_is_close_to_the_tracer():
             assert abs(m[f"gloss_{angle}"] - m[f"surrogate_gloss_{angle}"]) < 6.0, (tables, angle, m)
 
 
+@pytest.mark.slow
 def test_targets_taken_from_a_prediction_are_met_again_from_a_perturbed_start(tmp_path):
     from printapp.design import design_from_dict
     from printapp.engine import Engine

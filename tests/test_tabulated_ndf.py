@@ -87,6 +87,7 @@ def test_masking_from_the_table_is_beckmanns_closed_form_for_gaussian_slopes(the
 # --- against the tracer -------------------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_model_fits_a_gaussian_relief_within_twice_the_tables_noise():
     h = spectral_relief(192, 2.5, 2.5, 0.0, 0.25, seed=2)  # isotropic, slopes 0.25
     error, noise, model = traced(h, rays=400_000)  # measured: 7.2 % against 5.6 % noise
@@ -94,6 +95,7 @@ def test_model_fits_a_gaussian_relief_within_twice_the_tables_noise():
     assert error <= 2.0 * noise, (error, noise)
 
 
+@pytest.mark.slow
 def test_model_fits_a_grooved_gaussian_relief_within_twice_the_tables_noise():
     # Grooves along 30 degrees, slopes 0.25 across and 0.036 along: the analytic fit misses this
     # table by 12 % against 2.8 % noise at 512^2 (docs/benchmarks.md); the tabulated model, 3.4 %.

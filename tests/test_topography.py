@@ -120,6 +120,7 @@ def test_bad_height_maps(tmp_path, name, content, kwargs, message):
         read_heightmap(path, **kwargs)
 
 
+@pytest.mark.slow
 def test_heightmap_and_emboss_commands(tmp_path):
     from tests.test_cli import printapp
 
@@ -161,6 +162,7 @@ def test_gwyddion_files_keep_scale_and_non_square_pixels(tmp_path):
         read_heightmap(tmp_path / "bad.gwy")
 
 
+@pytest.mark.slow
 def test_heightmap_crop_and_bad_crop(tmp_path):
     from tests.test_cli import printapp
 

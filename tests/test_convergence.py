@@ -5,7 +5,6 @@ import math
 
 import numpy as np
 import pytest
-import trimesh
 
 from render.convergence import (
     ConvergenceSettings,
@@ -15,6 +14,7 @@ from render.convergence import (
     object_crop,
     relative_noise,
 )
+from tests.scenes import box_scene
 
 # --- The estimator on synthetic images of known variance ---------------------------------------
 
@@ -222,28 +222,12 @@ def test_denoiser_is_used_only_where_it_helps_and_never_decides():
 # --- Real renders ---------------------------------------------------------------------------------
 
 
-def _box_scene(width=64, height=48):
-    from render.mitsuba_adapter import choose_variant, resin_scene_dict
-
-    choose_variant()
-    m = trimesh.creation.box(extents=(10, 10, 2))
-    scene, _ = resin_scene_dict(
-        np.asarray(m.vertices),
-        np.asarray(m.faces),
-        body_albedo=(0.8, 0.5, 0.2),
-        refractive_index=1.5,
-        width_px=width,
-        height_px=height,
-    )
-    return scene
-
-
 @pytest.mark.slow
 def test_render_halves_are_independent_and_their_noise_is_the_true_noise():
     """The estimate of two 16-sample halves against the error of their mean to a 2,048-sample reference."""
     from render.progressive import SampleRenderer
 
-    renderer = SampleRenderer(_box_scene(), 64, 48)
+    renderer = SampleRenderer(box_scene()[0], 64, 48)
     mask = renderer.aovs(4, 0)["coverage"] >= 0.5
     passes = [renderer.render(256, 1000 + k) for k in range(8)]
     reference = np.mean(passes, axis=0)
@@ -284,7 +268,7 @@ def test_denoised_preview_agrees_with_the_converged_reference():
     denoiser, name = open_image_denoise()
     if denoiser is None:
         pytest.skip(name)
-    renderer = SampleRenderer(_box_scene(128, 96), 128, 96)
+    renderer = SampleRenderer(box_scene(128, 96)[0], 128, 96)
     guides = renderer.aovs(16, 0)
     mask = guides["coverage"] >= 0.5
     reference = np.mean([renderer.render(256, 500 + k) for k in range(4)], axis=0)

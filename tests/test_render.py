@@ -109,30 +109,14 @@ def test_one_traced_kernel_serves_every_lamp_position():
     import math
     from dataclasses import replace
 
-    from render.mitsuba_adapter import (
-        PREVIEW_FOV_DEG,
-        StudioLight,
-        choose_variant,
-        lamp_transforms,
-        resin_scene_dict,
-        studio_places,
-    )
+    from render.mitsuba_adapter import StudioLight, choose_variant, lamp_transforms, studio_places
     from render.progressive import SampleRenderer
+    from tests.scenes import box_scene
 
     if choose_variant().variant.startswith("scalar"):
         pytest.skip("the scalar variant traces no kernels")
     light = StudioLight()
-    box = trimesh.creation.box(extents=(10.0, 10.0, 2.0))
-    scene_dict, frame = resin_scene_dict(
-        np.asarray(box.vertices),
-        np.asarray(box.faces),
-        body_albedo=(0.5, 0.5, 0.5),
-        refractive_index=1.5,
-        width_px=32,
-        height_px=24,
-        fov_deg=PREVIEW_FOV_DEG,
-        light=light,
-    )
+    scene_dict, frame = box_scene(32, 24, light)
     renderer = SampleRenderer(scene_dict, 32, 24)
     seen = []
     for step in (1, 2, 3):

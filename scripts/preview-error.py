@@ -31,7 +31,7 @@ import trimesh
 
 from render.convergence import _denoise_halves, _dilate, _lum, denoised_error, relative_noise
 from render.mitsuba_adapter import PREVIEW_FOV_DEG, StudioLight, choose_variant, mesh_object, resin_scene_dict
-from render.progressive import SampleRenderer
+from render.progressive import SampleRenderer, passes_of
 
 WIDTH, HEIGHT = 1024, 768
 BODY = (0.25, 0.45, 0.75)
@@ -43,15 +43,8 @@ def halves(renderer: SampleRenderer, active: np.ndarray, spp: int) -> tuple[np.n
     for which in (0, 1):
         image = np.zeros((HEIGHT * WIDTH, 3))
         total = np.zeros((active.size, 3))
-        rest, power, k = spp, 1, 0
-        while power * 4 <= rest:
-            power *= 4
-        while rest > 0:  # passes of powers of four, as render.convergence takes them
-            while power > rest:
-                power //= 4
-            total += power * renderer.render(power, 1000 * which + k, active)
-            rest -= power
-            k += 1
+        for k, count in enumerate(passes_of(spp)):  # powers of four, as render.convergence takes them
+            total += count * renderer.render(count, 1000 * which + k, active)
         image[active] = total / spp
         out.append(image.reshape(HEIGHT, WIDTH, 3))
     return out[0], out[1]

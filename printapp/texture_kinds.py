@@ -334,9 +334,8 @@ def _lic_grid(
     from noise.lic import lic2d
     from printapp.fields import LIC_MAX_TAPS, field_on_grid, lic_field
 
-    values = _noise().sparse_convolution_grid(
-        x_mm / texture.feature_size_mm, y_mm / texture.feature_size_mm, **_common(texture)
-    )
+    # The field and the length are checked before any noise is made: a bad one fails at once.
+    field = lic_field(texture)
     step = float(x_mm[1] - x_mm[0]) if pitch_mm is None else pitch_mm
     length_px = max(texture.length_mm / step, 1.0)
     taps = 2.0 * len(x_mm) * len(y_mm) * (length_px + 1.0)
@@ -346,7 +345,10 @@ def _lic_grid(
             f"length: {length_px:.6g}-pixel streamlines over {len(x_mm)} x {len(y_mm)} pixels are {taps:.3g} "
             f"noise samples, more than {LIC_MAX_TAPS:.0e} (about a minute); at most {fitting:.3g} fits"
         )
-    u, v = field_on_grid(lic_field(texture), x_mm, y_mm)
+    u, v = field_on_grid(field, x_mm, y_mm)
+    values = _noise().sparse_convolution_grid(
+        x_mm / texture.feature_size_mm, y_mm / texture.feature_size_mm, **_common(texture)
+    )
     return lic2d(u, v, values, length=length_px)
 
 

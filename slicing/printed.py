@@ -43,10 +43,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from slicing.layers import Slices
+if TYPE_CHECKING:  # (annotations only: the layers' raster imports numba, which a design's validation need not)
+    from slicing.layers import Slices
 
 CURE_MODELS = ("working-curve", "linear")
 

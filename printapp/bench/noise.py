@@ -25,6 +25,12 @@ from printapp.bench.timing import StageResult, median_seconds
 
 IMPULSE_COUNTS = (1, 2, 4, 8, 16, 30, 64)
 _REFERENCE_N = 256
+SCATTERED_POINTS = 1_000_000
+"""Points of each scattered case (and of the 2-D grid, its side squared; the 3-D grid, cubed)."""
+SLICE_SIDE = 1024
+"""Side of the 2-D slice whose histogram and spectrum the impulse sweep measures."""
+SWEEP_POINTS = 200_000
+"""Dense scattered points the impulse sweep times."""
 
 
 def _perlin_peer() -> Any | None:
@@ -44,22 +50,29 @@ def _perlin_peer() -> Any | None:
     return perlin
 
 
+def _count(n: int) -> str:
+    exponent = round(math.log10(n))
+    return f"1e{exponent}" if 10**exponent == n else f"{n:,}"
+
+
 def _cases(rng: np.random.Generator) -> list[tuple[str, str, np.ndarray, tuple | None]]:
-    n = 1_000_000
-    x2 = np.arange(1000) * 0.05
-    x3 = np.arange(100) * 0.05
+    n = SCATTERED_POINTS
+    side2 = round(n ** (1 / 2))
+    side3 = round(n ** (1 / 3))
+    x2 = np.arange(side2) * 0.05
+    x3 = np.arange(side3) * 0.05
     gx, gy = np.meshgrid(x2, x2)
     g3 = np.stack(np.meshgrid(x3, x3, x3, indexing="ij"), axis=-1).reshape(-1, 3)[:, ::-1]
     return [
-        ("scattered 3-D, dense (1e6 in 16^3 cells)", "dense points", rng.uniform(0, 16, (n, 3)), None),
-        ("scattered 3-D, sparse (1e6 in 100^3 cells)", "sparse points", rng.uniform(0, 100, (n, 3)), None),
+        (f"scattered 3-D, dense ({_count(n)} in 16^3 cells)", "dense points", rng.uniform(0, 16, (n, 3)), None),
+        (f"scattered 3-D, sparse ({_count(n)} in 100^3 cells)", "sparse points", rng.uniform(0, 100, (n, 3)), None),
         (
-            "grid 2-D 1000x1000, 20 samples/cell",
+            f"grid 2-D {side2}x{side2}, 20 samples/cell",
             "2-D grid",
-            np.column_stack([gx.ravel(), gy.ravel(), np.zeros(n)]),
+            np.column_stack([gx.ravel(), gy.ravel(), np.zeros(gx.size)]),
             (x2, x2),
         ),
-        ("grid 3-D 100^3, 20 samples/cell", "3-D grid", np.ascontiguousarray(g3), (x3, x3, x3)),
+        (f"grid 3-D {side3}^3, 20 samples/cell", "3-D grid", np.ascontiguousarray(g3), (x3, x3, x3)),
     ]
 
 
@@ -174,14 +187,14 @@ def bench_noise(repeats: int) -> StageResult:
 
     # Accuracy against N: values on a 1024^2 slice at 1/8 unit, timing on dense scattered points.
     spacing = 0.125
-    axis = np.arange(1024) * spacing
+    axis = np.arange(SLICE_SIDE) * spacing
     # 0.25 to 2 cycles per unit holds nearly all the power; beyond, the kernel's spectrum
     # nears its first zero and relative errors measure aliasing, not the noise.
     edges = np.linspace(0.25, 2.0, 15)
     centres = 0.5 * (edges[1:] + edges[:-1])
     analytic = analytic_slice_spectrum(centres)
     reference = noise.sparse_convolution_grid(axis, axis, impulses=_REFERENCE_N).ravel()
-    timing_points = rng.uniform(0, 16, (200_000, 3))
+    timing_points = rng.uniform(0, 16, (SWEEP_POINTS, 3))
     sweep = []
     for n_impulses in IMPULSE_COUNTS:
         seconds, _ = median_seconds(

@@ -42,12 +42,15 @@ def _summary(name: str, manifest: dict[str, Any]) -> None:
 
 def _run(design_path: Path | None, out_dir: Path, force: bool, quiet: bool) -> None:
     from printapp.design_io import load_default_design, load_design
-    from printapp.pipeline import run_design
 
     if design_path is None:
         design, source = load_default_design(), "built-in default design"
     else:
         design, source = load_design(design_path), str(design_path)
+    # After the design is read: a bad design file is refused before the pipeline's imports
+    # (trimesh, SciPy, numba: 0.8 s).
+    from printapp.pipeline import run_design
+
     outcome = run_design(design, out_dir, source=source, force=force, quiet=quiet)
     if outcome.render_warning:
         warn(outcome.render_warning)

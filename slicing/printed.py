@@ -47,7 +47,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-if TYPE_CHECKING:  # (annotations only: the layers' raster imports numba, which a design's validation need not)
+if TYPE_CHECKING:  # annotations only: the layers' raster imports numba, which validation need not
     from slicing.layers import Slices
 
 CURE_MODELS = ("working-curve", "linear")

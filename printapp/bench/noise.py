@@ -57,6 +57,7 @@ def _count(n: int) -> str:
 
 def _cases(rng: np.random.Generator) -> list[tuple[str, str, np.ndarray, tuple | None]]:
     n = SCATTERED_POINTS
+    count = _count(n)
     side2 = round(n ** (1 / 2))
     side3 = round(n ** (1 / 3))
     x2 = np.arange(side2) * 0.05
@@ -64,8 +65,13 @@ def _cases(rng: np.random.Generator) -> list[tuple[str, str, np.ndarray, tuple |
     gx, gy = np.meshgrid(x2, x2)
     g3 = np.stack(np.meshgrid(x3, x3, x3, indexing="ij"), axis=-1).reshape(-1, 3)[:, ::-1]
     return [
-        (f"scattered 3-D, dense ({_count(n)} in 16^3 cells)", "dense points", rng.uniform(0, 16, (n, 3)), None),
-        (f"scattered 3-D, sparse ({_count(n)} in 100^3 cells)", "sparse points", rng.uniform(0, 100, (n, 3)), None),
+        (f"scattered 3-D, dense ({count} in 16^3 cells)", "dense points", rng.uniform(0, 16, (n, 3)), None),
+        (
+            f"scattered 3-D, sparse ({count} in 100^3 cells)",
+            "sparse points",
+            rng.uniform(0, 100, (n, 3)),
+            None,
+        ),
         (
             f"grid 2-D {side2}x{side2}, 20 samples/cell",
             "2-D grid",

@@ -34,7 +34,7 @@ def _fresnel(cos_i: float, eta: float) -> float:
 @njit(cache=True)
 def _fresnel_array(cos_i: np.ndarray, eta: float, out: np.ndarray) -> None:
     for k in range(cos_i.size):
-        out.flat[k] = _fresnel(cos_i.flat[k], eta)
+        out[k] = _fresnel(cos_i[k], eta)
 
 
 def fresnel_dielectric(cos_theta_i: np.ndarray | float, eta: float) -> np.ndarray:
@@ -57,9 +57,12 @@ def fresnel_dielectric(cos_theta_i: np.ndarray | float, eta: float) -> np.ndarra
     if not (eta > 0.0 and math.isfinite(eta)):
         raise ValueError(f"eta: expected a positive finite relative index, got {eta}")
     c = np.asarray(cos_theta_i, dtype=np.float64)
-    out = np.empty_like(c)
-    _fresnel_array(np.ascontiguousarray(c), float(eta), out)
-    return out
+    # Flat in and out, whatever the shape: one compiled specialisation instead of one per
+    # number of dimensions.
+    flat = np.ascontiguousarray(c).reshape(-1)
+    out = np.empty_like(flat)
+    _fresnel_array(flat, float(eta), out)
+    return out.reshape(c.shape)
 
 
 @functools.lru_cache(maxsize=64)

@@ -100,7 +100,7 @@ class Slices:
             1.0 / p.pitch_x_mm,
             1.0 / p.pitch_y_mm,
             self.antialias,
-            acc[: r1 - r0, : c1 - c0 + 2],
+            acc,
             out,
         )
         return out, r0, c0
@@ -151,7 +151,9 @@ class Slices:
                     oy + r0 * p.pitch_y_mm,
                     1.0 / p.pitch_x_mm,
                     1.0 / p.pitch_y_mm,
-                    acc[: r1 - r0, : c1 - c0 + 2],
+                    acc,
+                    r1 - r0,
+                    c1 - c0,
                 ),
             )
         return worst

@@ -392,15 +392,18 @@ def _layer_box(
 
 @njit(cache=True, nogil=True)
 def _rasterise_layer_grey(
-    seg, start, end, ox: float, oy: float, inv_pitch_x: float, inv_pitch_y: float, antialias: bool, acc, out
+    seg, start, end, ox: float, oy: float, inv_pitch_x: float, inv_pitch_y: float, antialias: bool, whole, out
 ) -> None:
     """Straight to 8-bit grey: round(255 coverage), or 255 where coverage >= 1/2.
 
-    ``acc`` must be zero on entry and is left zero (cleared while it is summed), which
-    saves a pass over it per layer.
+    The accumulator is the ``out``-sized corner of ``whole`` (two columns wider), which must
+    be zero on entry and is left zero (cleared while it is summed), saving a pass over it per
+    layer. The corner is cut here rather than by the caller: a view cut in Python is typed
+    C-contiguous or not by where the layer falls, and each typing is a compilation.
     """
-    _add_segments(seg, start, end, ox, oy, inv_pitch_x, inv_pitch_y, acc)
     rows, cols = out.shape
+    acc = whole[:rows, : cols + 2]
+    _add_segments(seg, start, end, ox, oy, inv_pitch_x, inv_pitch_y, acc)
     for r in range(rows):
         total = 0.0
         grey = np.uint8(0)
@@ -422,15 +425,19 @@ def _rasterise_layer_grey(
 
 
 @njit(cache=True, nogil=True)
-def _max_winding(seg, start, end, ox: float, oy: float, inv_pitch_x: float, inv_pitch_y: float, acc) -> float:
-    """Largest |winding number| (averaged over a pixel) of a layer's section; acc is left zero.
+def _max_winding(
+    seg, start, end, ox: float, oy: float, inv_pitch_x: float, inv_pitch_y: float, whole, rows: int, cols: int
+) -> float:
+    """Largest |winding number| (averaged over a pixel) of a layer's section over the ``rows``
+    x ``cols`` corner of ``whole`` (the accumulator, two columns wider; left zero). The corner
+    is cut here for the reason :func:`_rasterise_layer_grey` gives.
 
     A closed, consistently oriented solid that does not overlap itself winds once around
     every point inside it: more than one means the surface passes through itself there.
     """
+    acc = whole[:rows, : cols + 2]
     _add_segments(seg, start, end, ox, oy, inv_pitch_x, inv_pitch_y, acc)
     worst = 0.0
-    rows, cols = acc.shape[0], acc.shape[1] - 2
     for r in range(rows):
         total = 0.0
         for c in range(cols):

@@ -43,6 +43,20 @@ def gaussian_surface(rms_slope: float, n: int = 1024, corr_px: float = 1.5, seed
 # --- Fresnel ------------------------------------------------------------------------------
 
 
+def test_fresnel_keeps_the_shape_and_compiles_once():
+    from render.fresnel import _fresnel_array
+
+    cos = np.random.default_rng(3).uniform(0.0, 1.0, (2, 3, 4))
+    flat = fresnel_dielectric(cos.reshape(-1), 1.5)
+    for shaped in (cos, cos[0], cos[0, 0]):
+        got = fresnel_dielectric(shaped, 1.5)
+        assert got.shape == shaped.shape
+        assert np.array_equal(got.reshape(-1), flat[: shaped.size])
+    assert np.shape(fresnel_dielectric(0.5, 1.5)) == ()
+    assert fresnel_dielectric(0.5, 1.5) == fresnel_dielectric(np.array([0.5]), 1.5)[0]
+    assert len(_fresnel_array.signatures) == 1
+
+
 def test_fresnel_closed_forms_and_total_internal_reflection():
     assert fresnel_dielectric(1.0, 1.5) == pytest.approx(0.04, abs=1e-15)
     assert fresnel_dielectric(0.0, 1.5) == pytest.approx(1.0)

@@ -273,3 +273,20 @@ def test_winding_number_finds_self_overlap():
     overlapping = trimesh.util.concatenate([box, inner])  # closed shells, never merged
     assert slice_mesh(box.vertices, box.faces, SL1).max_winding() == pytest.approx(1.0)
     assert slice_mesh(overlapping.vertices, overlapping.faces, SL1).max_winding() == pytest.approx(2.0)
+
+
+def test_layer_kernels_compile_once_wherever_a_layer_falls():
+    """A layer's window cut in Python was typed C-contiguous when it spanned the whole width and
+    not otherwise, so a part that filled its window on some layer compiled the kernels again
+    (a second or two on the user's first run, past `printapp warmup`)."""
+    from slicing.raster import _max_winding, _rasterise_layer_grey
+
+    # A cone: its bottom layers fill the window, its top ones a small part of it.
+    cone = trimesh.creation.cone(radius=5.0, height=4.0, sections=32)
+    cone.apply_translation((0.0, 0.0, 0.2))
+    slices = slice_mesh(cone.vertices, cone.faces, SL1)
+    assert slices.max_winding() == pytest.approx(1.0)
+    widths = {slices.layer_grey(k)[0].shape[1] for k in range(slices.n_layers)}
+    assert max(widths) == slices.cols and min(widths) < slices.cols // 2
+    assert len(_max_winding.signatures) == 1
+    assert len(_rasterise_layer_grey.signatures) == 1

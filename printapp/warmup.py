@@ -31,6 +31,15 @@ def _noise() -> None:
     noise.turbulence_grid(axis, axis, low=0, high=2, min_pitch=0.1)
     noise.veins(pts, angle=0.3, period=2.0, strength=3.0, sharpness=2.0, low=0, high=2)
     noise.veins_grid(axis, axis, angle=0.3, period=2.0, strength=3.0, sharpness=2.0, low=0, high=2)
+    # Points whose cells lie far apart are sorted by cell instead of counted into a grid.
+    noise.sparse_convolution(pts * 1e5)
+    from noise.cellular import cellular
+    from noise.tables import NoiseTable
+
+    cellular(pts[:, :2])
+    table = NoiseTable(8.0, 0)  # the photo fits' stand-in noise
+    table(pts[:, :2])
+    table.octave_sum(pts[:, :2], 0, np.array([1.0, 2.0]), np.array([1.0, 0.5]), np.zeros((2, 2)))
 
 
 def _lic() -> None:
@@ -66,6 +75,9 @@ def _tile() -> None:
     _design(small, brdf=True)
     _design({**small, "texture": {"kind": "lic", "field": "swirl", "feature_size_mm": 0.5}}, brdf=False)
     _design({**small, "texture": {"kind": "marble", "feature_size_mm": 1.0}}, brdf=False)
+    for network in ("cellular", "ridged"):  # the photo fits' marble
+        veined = {"kind": "veined", "feature_size_mm": 1.0, "vein_network": network, "vein_scale_mm": 2.0}
+        _design({**small, "texture": veined}, brdf=False)
 
 
 def _mesh() -> None:
@@ -74,14 +86,17 @@ def _mesh() -> None:
     from printapp.design import design_from_dict
     from printapp.exporters import stl_bytes
     from printapp.relief import build_relief
+    from printapp.stl import load_closed_stl
     from slicing import find_printer, slice_mesh, write_sl1
 
     box = trimesh.creation.box((4.0, 4.0, 4.0))
     with tempfile.TemporaryDirectory() as folder:
         path = Path(folder) / "box.stl"
         path.write_bytes(stl_bytes(box.vertices, box.faces))
-        for kind in ("fbm", "lic"):
-            texture = {"kind": kind, "feature_size_mm": 1.0, "field": "axis:0,0,1"}
+        load_closed_stl(path)
+        # Noise in tangent frames (stretched along a field) as well as isotropic and LIC.
+        for kind, stretch in (("fbm", 1.0), ("fbm", 3.0), ("lic", 1.0)):
+            texture = {"kind": kind, "feature_size_mm": 1.0, "field": "axis:0,0,1", "stretch": stretch}
             design = design_from_dict(
                 {"base": {"path": str(path)}, "texture": texture, "relief": {"amplitude_mm": 0.1}}
             )
@@ -110,9 +125,17 @@ def _emboss_and_brdf() -> None:
 
 
 def _materials() -> None:
+    from printapp.material_report import material_report
     from printapp.materials import appearance
+    from render.diffusion import diffuse_box
+    from render.fresnel import fresnel_dielectric
 
     appearance("white-resin")
+    _, optics = material_report("white-resin", {}, [450.0, 550.0])
+    optics.phase_function(np.linspace(-1.0, 1.0, 5), 0)  # `printapp material --plot`
+    fresnel_dielectric(np.linspace(0.0, 1.0, 5), 1.5)
+    # The light diffused through a translucent tile (the BSSRDF preview).
+    diffuse_box((3, 3, 3), 0.1, 1.0, 0.01, 0.0, 1.5, {"top": np.ones((3, 3))})
 
 
 def _render() -> None:

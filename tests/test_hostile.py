@@ -568,3 +568,29 @@ def test_fuzz_emboss_options(worker, options):
     for flag, value in options:
         args += [flag, value]
     assert_handled(worker, args, {"m.png": SEEDS["m.png"]})
+
+
+def test_a_signal_turned_into_another_error_still_ends_the_run_as_a_signal(tmp_path):
+    # Dr.Jit's extension, interrupted while it initialises, turns the signal into an
+    # ImportError and then a NameError (seen once in `make test` at 2.5 s into a design).
+    script = """
+import importlib, os, signal
+cli = importlib.import_module("printapp.cli.app")
+
+def interrupted_inside_an_import():
+    try:
+        os.kill(os.getpid(), signal.SIGINT)
+        for _ in range(10**6):
+            pass
+    except BaseException:
+        pass
+    raise NameError("name '_drjit_ext' is not defined")
+
+cli.app = interrupted_inside_an_import
+cli.main()
+"""
+    run = subprocess.run(
+        [sys.executable, "-c", script], cwd=tmp_path, capture_output=True, text=True, timeout=60
+    )
+    assert run.returncode == 130, run.stderr
+    assert "interrupted; no partial outputs were left" in run.stderr and "Traceback" not in run.stderr

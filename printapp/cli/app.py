@@ -13,7 +13,7 @@ import sys
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 from rich.console import Console
@@ -21,6 +21,9 @@ from rich.text import Text
 from typer.core import TyperGroup
 
 from printapp.errors import PrintappError
+
+if TYPE_CHECKING:
+    from printapp.interrupts import Interrupted
 
 err = Console(stderr=True, highlight=False, soft_wrap=True, markup=False)
 out = Console(highlight=False, soft_wrap=True, markup=False)
@@ -128,16 +131,27 @@ def main() -> None:
     try:
         app()
     except Interrupted as exc:
-        err.print(f"{exc.name}; no partial outputs were left")
-        _exit_now(exc.exit_code)
+        _exit_interrupted(exc)
     except SystemExit as done:
         signum = received()
         if signum is None:
             _exit_now(done.code)
         # The signal was swallowed somewhere below, but every output was held back.
-        stopped = Interrupted(signum)
-        err.print(f"{stopped.name}; no partial outputs were left")
-        _exit_now(stopped.exit_code)
+        _exit_interrupted(Interrupted(signum))
+    except BaseException:
+        signum = received()
+        if signum is None:
+            raise
+        # The signal struck inside an extension's initialisation (Dr.Jit's, while Mitsuba was
+        # imported), which turned it into an ImportError and then a NameError; the output
+        # folder was cleaned up on the way out, as for any error.
+        _exit_interrupted(Interrupted(signum))
+
+
+def _exit_interrupted(stopped: Interrupted) -> None:
+    """One line for the signal, then its exit code (130 or 143)."""
+    err.print(f"{stopped.name}; no partial outputs were left")
+    _exit_now(stopped.exit_code)
 
 
 def _exit_now(code: object) -> None:

@@ -408,6 +408,8 @@ def estimate_brdf(
     h = np.ascontiguousarray(heights_mm, dtype=np.float64)
     if h.ndim != 2 or min(h.shape) < 2 or not np.all(np.isfinite(h)):
         raise ValueError("heights_mm: expected a finite 2-D array of at least 2x2 samples")
+    if not h.flags.writeable:  # read-only is another type to numba: another compilation
+        h = h.copy()
     if not (pitch_x_mm > 0 and pitch_y_mm > 0):
         raise ValueError("pitch: expected positive pixel pitches (mm)")
     wis = np.atleast_2d(np.asarray(wi, dtype=np.float64))
@@ -460,8 +462,10 @@ def estimate_brdf(
         window,
         mirror,
         e_perp,
-        np.ascontiguousarray(ap[:, 0]),
-        np.ascontiguousarray(ap[:, 1]),
+        # Copies: a view of the broadcast apertures is read-only for one direction and not for
+        # several, and numba compiles each flag apart (a second compilation of this kernel).
+        np.array(ap[:, 0]),
+        np.array(ap[:, 1]),
         float(ior),
         0.0 if perfect_reflector else body_factor(body_albedo, ior),
         bool(perfect_reflector),

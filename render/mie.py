@@ -106,9 +106,11 @@ def _prepare(m, x, n_med) -> tuple[np.ndarray, np.ndarray, np.ndarray, tuple[int
         )
     shape = x_b.shape
     return (
-        np.ascontiguousarray(np.conj(m_b).ravel()),
-        np.ascontiguousarray(x_b.ravel()),
-        np.ascontiguousarray(host_k.ravel()),
+        # Copies, contiguous and writable whatever was passed (a read-only array is another
+        # type to numba, and another compilation of each kernel).
+        np.array(np.conj(m_b).ravel(), order="C"),
+        np.array(x_b.ravel(), order="C"),
+        np.array(host_k.ravel(), order="C"),
         shape,
     )
 
@@ -198,7 +200,8 @@ def amplitudes(
     -------
     s1, s2 : complex arrays of shape ``P + mu.shape``.
     """
-    mu_arr = np.atleast_1d(np.asarray(mu, dtype=np.float64))
+    # Copied (contiguous and writable whatever was passed): one compiled specialisation.
+    mu_arr = np.array(mu, dtype=np.float64, ndmin=1, order="C")
     if mu_arr.ndim != 1 or not np.all(np.isfinite(mu_arr)) or np.any(np.abs(mu_arr) > 1.0):
         raise ValueError("mu: expected cosines in [-1, 1] as a number or a 1-D array")
     m_f, x_f, h_f, shape = _prepare(m, x, n_med)
@@ -230,7 +233,8 @@ def phase_function(
     -------
     1-D array over ``mu``.
     """
-    mu_arr = np.atleast_1d(np.asarray(mu, dtype=np.float64))
+    # Copied (contiguous and writable whatever was passed): one compiled specialisation.
+    mu_arr = np.array(mu, dtype=np.float64, ndmin=1, order="C")
     if mu_arr.ndim != 1 or not np.all(np.isfinite(mu_arr)) or np.any(np.abs(mu_arr) > 1.0):
         raise ValueError("mu: expected cosines in [-1, 1] as a number or a 1-D array")
     m_f, x_f, h_f, _ = _prepare(m, x, n_med)
@@ -245,5 +249,5 @@ def phase_function(
         raise ValueError("weights: expected at least one positive weight")
     nchunks = max(1, min(64, x_f.size))
     out = np.zeros((nchunks, mu_arr.size))
-    _phase_mix_kernel(m_f, x_f, h_f, np.ascontiguousarray(w), mu_arr, out)
+    _phase_mix_kernel(m_f, x_f, h_f, np.array(w, order="C"), mu_arr, out)
     return out.sum(axis=0) / total

@@ -471,3 +471,19 @@ def test_analytic_fit_added_later_is_the_one_fitted_at_once():
     assert later.metrics == at_once.metrics
     assert list(later.metrics) == list(at_once.metrics)  # the manifest's keys in the same order
     assert later.analytic.model == at_once.analytic.model
+
+
+def test_the_tracer_compiles_once_for_any_number_of_directions_and_read_only_heights():
+    # A view of the broadcast apertures was read-only for one direction and not for two, and
+    # numba compiled the whole tracer twice (seen in `make test`, tens of seconds).
+    from render._gonio_kernels import _gonio
+
+    heights = np.random.default_rng(1).normal(0.0, 0.01, (8, 8))
+    frozen = heights.copy()
+    frozen.setflags(write=False)
+    one = np.array([[0.0, 0.3, 1.0]])
+    two = np.array([[0.0, 0.3, 1.0], [0.5, 0.0, 1.0]])
+    a = estimate_brdf(heights, 0.05, 0.05, one, rays=2000, n_theta=9, n_phi=12)
+    b = estimate_brdf(frozen, 0.05, 0.05, two, rays=2000, n_theta=9, n_phi=12)
+    assert np.array_equal(a.f[0], b.f[0])  # the first direction traces the same rays either way
+    assert len(_gonio.signatures) == 1

@@ -175,6 +175,20 @@ def test_weighted_phase_function_is_the_mixture():
     assert np.allclose(mix, (p1 + 3 * p2) / 4, rtol=1e-12)
 
 
+def test_phase_function_compiles_once_whatever_arrays_it_is_given():
+    # Read-only, broadcast or strided inputs are other types to numba: each was a compilation.
+    from render._mie_kernels import _phase_mix_kernel
+
+    mu = np.linspace(-1, 1, 14)
+    frozen = mu.copy()
+    frozen.setflags(write=False)
+    plain = mie.phase_function(np.array([1.5, 1.5]), np.array([1.0, 4.0]), mu, weights=np.array([1.0, 3.0]))
+    odd = mie.phase_function(1.5, np.array([1.0, 4.0]), frozen[::1], weights=np.array([1.0, 3.0]))
+    strided = mie.phase_function(1.5, np.array([1.0, 4.0]), np.repeat(mu, 2)[::2], weights=[1.0, 3.0])
+    assert np.array_equal(plain, odd) and np.array_equal(plain, strided)
+    assert len(_phase_mix_kernel.signatures) == 1
+
+
 @pytest.mark.parametrize("x", [1e-3, 1e-5, 1e-8, 1e-12, 1e-40])
 @pytest.mark.parametrize("m", [1.5, 1.5 - 0.1j, 0.7, 3 - 2j])
 def test_rayleigh_limit(m, x):

@@ -78,7 +78,9 @@ def _as_normals(normals: np.ndarray, normalize: bool) -> np.ndarray:
             raise ValueError(
                 f"normals: expected unit vectors, found a length off by {worst:.3g}; pass normalize=True"
             )
-    return np.ascontiguousarray(arr)
+    arr = np.ascontiguousarray(arr)
+    # A read-only array (trimesh's cached normals) is another type to numba: a compilation.
+    return arr if arr.flags.writeable else arr.copy()
 
 
 def onb(

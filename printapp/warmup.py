@@ -101,6 +101,12 @@ def _mesh() -> None:
                 {"base": {"path": str(path)}, "texture": texture, "relief": {"amplitude_mm": 0.1}}
             )
             relief = build_relief(design)
+        # The design's other frame and field choices: `onb = "frisvad"`, `field = "curvature:max"`.
+        from noise.frames import onb
+        from noise.surface import field_principal_curvature
+
+        onb(np.asarray(box.vertex_normals, dtype=np.float64), "frisvad")
+        field_principal_curvature(np.asarray(box.vertices), np.asarray(box.faces), "max")
         import io
 
         slices = slice_mesh(relief.mesh.vertices, relief.mesh.faces, find_printer("prusa-sl1"))

@@ -217,6 +217,26 @@ def test_help_lists_the_commands():
         assert command in result.stdout
 
 
+def test_every_help_text_is_shown_whole():
+    # Rich markup had swallowed every "[...]" of the help texts: "Layer height [the profile's]."
+    # read "Layer height ." and the --max-memory default and variable were gone.
+    import typer.main
+    from typer.testing import CliRunner
+
+    from printapp.cli import app
+
+    root = typer.main.get_group(app)
+    checked = 0
+    for name, command in [("", root), *sorted(root.commands.items())]:
+        shown = " ".join(CliRunner().invoke(app, [*([name] if name else []), "--help"]).output.split())
+        for param in command.params:
+            text = getattr(param, "help", None)
+            if text and "[" in text:
+                assert " ".join(text.split()) in shown, (name, text)
+                checked += 1
+    assert checked >= 10
+
+
 def test_bench_writes_json_and_chart(tmp_path):
     result = printapp("bench", "pitch", "--repeats", "1", "-o", tmp_path)
     assert result.returncode == 0, result.stderr

@@ -49,6 +49,8 @@ app = typer.Typer(
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,
+    # Help texts are plain: Rich markup would swallow every "[default ...]" and "[env ...]".
+    rich_markup_mode=None,
 )
 
 QuietOption = Annotated[

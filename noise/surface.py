@@ -129,12 +129,16 @@ def field_rotation(vertices: np.ndarray, faces: np.ndarray, axis, centre, normal
 
 @njit(cache=True, parallel=True)
 def _principal(vertices, indptr, neighbours, normals, b1, b2, use_max: bool, out) -> None:
+    # The 5 x 5 normal equations are solved by Cholesky and the 2 x 2 Hessian's eigenvectors in
+    # closed form, by hand: numba's np.linalg.solve and eigh compiled for 9 s (LAPACK's
+    # wrappers and their error paths), longer than the whole field takes on a 700k-vertex part.
     for v in prange(vertices.shape[0]):
         start, end = indptr[v], indptr[v + 1]
         # Least squares z = a x^2 + b x y + c y^2 + d x + e y in the vertex's frame
         # (the linear terms absorb error in the normal).
         ata = np.zeros((5, 5))
         atz = np.zeros(5)
+        row = np.empty(5)
         for k in range(start, end):
             q = neighbours[k]
             dx = vertices[q, 0] - vertices[v, 0]
@@ -143,7 +147,7 @@ def _principal(vertices, indptr, neighbours, normals, b1, b2, use_max: bool, out
             x = dx * b1[v, 0] + dy * b1[v, 1] + dz * b1[v, 2]
             y = dx * b2[v, 0] + dy * b2[v, 1] + dz * b2[v, 2]
             z = dx * normals[v, 0] + dy * normals[v, 1] + dz * normals[v, 2]
-            row = np.array([x * x, x * y, y * y, x, y])
+            row[0], row[1], row[2], row[3], row[4] = x * x, x * y, y * y, x, y
             for i in range(5):
                 atz[i] += row[i] * z
                 for j in range(5):
@@ -156,15 +160,59 @@ def _principal(vertices, indptr, neighbours, normals, b1, b2, use_max: bool, out
             scale = max(scale, ata[i, i])
         for i in range(5):
             ata[i, i] += 1e-12 * scale + 1e-300
-        coef = np.linalg.solve(ata, atz)
-        h = np.array([[2 * coef[0], coef[1]], [coef[1], 2 * coef[2]]])
-        values, vectors = np.linalg.eigh(h)
-        pick = 1 if (abs(values[1]) >= abs(values[0])) == use_max else 0
-        if abs(values[1] - values[0]) < 1e-9 * (abs(values[0]) + abs(values[1]) + 1e-300):
+        if not _cholesky_solve_in_place(ata, atz):
+            continue  # not positive definite in floating point: no fit
+        a2, b2c, c2 = 2.0 * atz[0], atz[1], 2.0 * atz[2]  # the Hessian [[a2, b2c], [b2c, c2]]
+        mean = 0.5 * (a2 + c2)
+        half = math.hypot(0.5 * (a2 - c2), b2c)
+        low, high = mean - half, mean + half  # ascending, as eigh orders them
+        pick_high = (abs(high) >= abs(low)) == use_max
+        if high - low < 1e-9 * (abs(low) + abs(high) + 1e-300):
             continue  # umbilic: no preferred direction
-        ex, ey = vectors[0, pick], vectors[1, pick]
+        lam = high if pick_high else low
+        # (A - lam I) e = 0: e is orthogonal to either row; the longer candidate is the better.
+        ux, uy = b2c, lam - a2
+        wx, wy = lam - c2, b2c
+        if ux * ux + uy * uy >= wx * wx + wy * wy:
+            ex, ey = ux, uy
+        else:
+            ex, ey = wx, wy
+        norm = math.hypot(ex, ey)
+        ex, ey = ex / norm, ey / norm
         for i in range(3):
             out[v, i] = ex * b1[v, i] + ey * b2[v, i]
+
+
+@njit(cache=True)
+def _cholesky_solve_in_place(a: np.ndarray, b: np.ndarray) -> bool:
+    """Solve ``a x = b`` for a symmetric positive definite ``a`` (n x n, small) by Cholesky:
+    ``a``'s lower triangle becomes the factor, ``b`` the solution. False where a pivot is
+    not positive (``a`` not positive definite in floating point), with ``a`` and ``b`` spoilt."""
+    n = a.shape[0]
+    for j in range(n):
+        d = a[j, j]
+        for k in range(j):
+            d -= a[j, k] * a[j, k]
+        if not d > 0.0:
+            return False
+        d = math.sqrt(d)
+        a[j, j] = d
+        for i in range(j + 1, n):
+            s = a[i, j]
+            for k in range(j):
+                s -= a[i, k] * a[j, k]
+            a[i, j] = s / d
+    for i in range(n):  # L y = b
+        s = b[i]
+        for k in range(i):
+            s -= a[i, k] * b[k]
+        b[i] = s / a[i, i]
+    for i in range(n - 1, -1, -1):  # L^T x = y
+        s = b[i]
+        for k in range(i + 1, n):
+            s -= a[k, i] * b[k]
+        b[i] = s / a[i, i]
+    return True
 
 
 def field_principal_curvature(vertices: np.ndarray, faces: np.ndarray, which: str = "max") -> np.ndarray:

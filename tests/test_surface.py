@@ -66,6 +66,41 @@ def test_principal_directions_on_a_cylinder():
     assert np.abs(along[live, 2]).min() > 0.99  # along its axis
 
 
+def test_principal_directions_on_a_torus_match_the_closed_form():
+    """A torus (R = 10, r = 3): the curvature around the tube, 1/r, is everywhere the larger in
+    magnitude (cos v / (R + r cos v) along the parallels), so "max" runs around the tube (its
+    direction has no azimuthal part) and "min" along the parallels (all azimuthal). The vertex
+    frames are turned every way against these directions, so the Hessian's off-diagonal terms
+    and both of its eigenvectors are exercised."""
+    torus = trimesh.creation.torus(10.0, 3.0, major_sections=160, minor_sections=64)
+    vertices, faces = np.asarray(torus.vertices), np.asarray(torus.faces)
+    azimuthal = np.column_stack([-vertices[:, 1], vertices[:, 0], np.zeros(len(vertices))])
+    azimuthal /= np.linalg.norm(azimuthal, axis=1, keepdims=True)
+    around = field_principal_curvature(vertices, faces, "max")
+    along = field_principal_curvature(vertices, faces, "min")
+    assert np.all(np.linalg.norm(around, axis=1) > 0.999) and np.all(np.linalg.norm(along, axis=1) > 0.999)
+    assert np.abs(np.sum(around * azimuthal, axis=1)).max() < 0.02
+    assert np.abs(np.sum(along * azimuthal, axis=1)).min() > 0.999
+
+
+def test_the_small_cholesky_solver_matches_lapack():
+    """The 5 x 5 normal equations of the curvature fit, solved by hand, against LAPACK's solve;
+    a matrix that is not positive definite is refused."""
+    from noise.surface import _cholesky_solve_in_place
+
+    rng = np.random.default_rng(7)
+    for _ in range(200):
+        rows = rng.normal(size=(int(rng.integers(5, 30)), 5)) * rng.uniform(0.01, 10.0, size=5)
+        a = rows.T @ rows + 1e-9 * np.eye(5)
+        b = rng.normal(size=5)
+        x = b.copy()
+        assert _cholesky_solve_in_place(a.copy(), x)
+        np.testing.assert_allclose(a @ x, b, rtol=0, atol=1e-8 * np.abs(a).max() * np.abs(x).max())
+        np.testing.assert_allclose(x, np.linalg.solve(a, b), rtol=1e-6, atol=1e-9)
+    indefinite = np.diag([1.0, 2.0, -1.0, 3.0, 4.0])
+    assert not _cholesky_solve_in_place(indefinite, np.ones(5))
+
+
 def neighbour_differences(vertices, faces, values, field):
     """Mean |value difference| to the 1-ring neighbour most along, and most across, the field."""
     edges = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])

@@ -198,175 +198,216 @@ def _eval_framed(
     """
     n_clusters = starts.shape[0] - 1
     n_chunks = min(n_clusters, _CHUNKS)
-    nc = per_cell
+    # The loop's body is a function of its own: numba's parallel passes then analyse a call,
+    # not two hundred lines (the first framed noise compiled in 10-11 s, now in 7 s), and it
+    # runs as fast.
     for chunk in prange(n_chunks):
-        cache_key = np.full((_CACHE_SLOTS, 3), np.iinfo(np.int64).min, dtype=np.int64)
-        cache = np.empty((_CACHE_SLOTS, nc, 4))
-        cap = 4096
-        bx = np.empty(cap)
-        by = np.empty(cap)
-        bz = np.empty(cap)
-        ba = np.empty(cap)
-        for g in range(chunk * n_clusters // n_chunks, (chunk + 1) * n_clusters // n_chunks):
-            s0, s1 = starts[g], starts[g + 1]
-            # The cluster's frame: tangents sign-aligned (a line field) and weighted by their stretch.
-            k = order[s0]
-            r0, r1, r2 = tangents[k, 0], tangents[k, 1], tangents[k, 2]
-            m0 = m1 = m2 = 0.0
-            n0 = n1 = n2 = 0.0
-            lo0 = lo1 = lo2 = np.inf
-            hi0 = hi1 = hi2 = -np.inf
-            c_max = 0.0
-            for m in range(s0, s1):
-                k = order[m]
-                t0, t1, t2 = tangents[k, 0], tangents[k, 1], tangents[k, 2]
-                c = squeeze[k]
-                w = c if t0 * r0 + t1 * r1 + t2 * r2 >= 0.0 else -c
-                m0 += w * t0
-                m1 += w * t1
-                m2 += w * t2
-                n0 += normals[k, 0]
-                n1 += normals[k, 1]
-                n2 += normals[k, 2]
-                c_max = max(c_max, c)
-                # Half-extents of the point's kernel box: (1/2) sqrt(1 + (s^2 - 1) t_a^2).
-                g2 = c / (1.0 - c)
-                x, y, z = points[k, 0] * scale, points[k, 1] * scale, points[k, 2] * scale
-                h = 0.5 * math.sqrt(1.0 + g2 * t0 * t0)
-                lo0, hi0 = min(lo0, x - h), max(hi0, x + h)
-                h = 0.5 * math.sqrt(1.0 + g2 * t1 * t1)
-                lo1, hi1 = min(lo1, y - h), max(hi1, y + h)
-                h = 0.5 * math.sqrt(1.0 + g2 * t2 * t2)
-                lo2, hi2 = min(lo2, z - h), max(hi2, z + h)
-            # An orthonormal frame (m, b, n) for the cluster; any one is valid, a fitting one is tight.
-            nn = math.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
-            if nn > 1e-12:
-                n0, n1, n2 = n0 / nn, n1 / nn, n2 / nn
+        _eval_chunk(
+            chunk * n_clusters // n_chunks,
+            (chunk + 1) * n_clusters // n_chunks,
+            points,
+            tangents,
+            normals,
+            squeeze,
+            amp,
+            order,
+            starts,
+            scale,
+            side,
+            per_cell,
+            key,
+            mode_hash,
+            out,
+        )
+
+
+@njit(cache=True, fastmath=_FASTMATH)
+def _eval_chunk(
+    g_begin: np.int64,
+    g_end: np.int64,
+    points: np.ndarray,
+    tangents: np.ndarray,
+    normals: np.ndarray,
+    squeeze: np.ndarray,
+    amp: np.ndarray,
+    order: np.ndarray,
+    starts: np.ndarray,
+    scale: float,
+    side: float,
+    per_cell: np.int64,
+    key: np.uint64,
+    mode_hash: bool,
+    out: np.ndarray,
+) -> None:
+    """:func:`_eval_framed` for clusters ``g_begin`` to ``g_end`` (one work item, one cache)."""
+    nc = per_cell
+    cache_key = np.full((_CACHE_SLOTS, 3), np.iinfo(np.int64).min, dtype=np.int64)
+    cache = np.empty((_CACHE_SLOTS, nc, 4))
+    cap = 4096
+    bx = np.empty(cap)
+    by = np.empty(cap)
+    bz = np.empty(cap)
+    ba = np.empty(cap)
+    for g in range(g_begin, g_end):
+        s0, s1 = starts[g], starts[g + 1]
+        # The cluster's frame: tangents sign-aligned (a line field) and weighted by their stretch.
+        k = order[s0]
+        r0, r1, r2 = tangents[k, 0], tangents[k, 1], tangents[k, 2]
+        m0 = m1 = m2 = 0.0
+        n0 = n1 = n2 = 0.0
+        lo0 = lo1 = lo2 = np.inf
+        hi0 = hi1 = hi2 = -np.inf
+        c_max = 0.0
+        for m in range(s0, s1):
+            k = order[m]
+            t0, t1, t2 = tangents[k, 0], tangents[k, 1], tangents[k, 2]
+            c = squeeze[k]
+            w = c if t0 * r0 + t1 * r1 + t2 * r2 >= 0.0 else -c
+            m0 += w * t0
+            m1 += w * t1
+            m2 += w * t2
+            n0 += normals[k, 0]
+            n1 += normals[k, 1]
+            n2 += normals[k, 2]
+            c_max = max(c_max, c)
+            # Half-extents of the point's kernel box: (1/2) sqrt(1 + (s^2 - 1) t_a^2).
+            g2 = c / (1.0 - c)
+            x, y, z = points[k, 0] * scale, points[k, 1] * scale, points[k, 2] * scale
+            h = 0.5 * math.sqrt(1.0 + g2 * t0 * t0)
+            lo0, hi0 = min(lo0, x - h), max(hi0, x + h)
+            h = 0.5 * math.sqrt(1.0 + g2 * t1 * t1)
+            lo1, hi1 = min(lo1, y - h), max(hi1, y + h)
+            h = 0.5 * math.sqrt(1.0 + g2 * t2 * t2)
+            lo2, hi2 = min(lo2, z - h), max(hi2, z + h)
+        # An orthonormal frame (m, b, n) for the cluster; any one is valid, a fitting one is tight.
+        nn = math.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
+        if nn > 1e-12:
+            n0, n1, n2 = n0 / nn, n1 / nn, n2 / nn
+        else:
+            n0, n1, n2 = 0.0, 0.0, 1.0
+        mm = math.sqrt(m0 * m0 + m1 * m1 + m2 * m2)
+        if mm < 1e-12:
+            m0, m1, m2 = r0, r1, r2
+        d = m0 * n0 + m1 * n1 + m2 * n2
+        m0, m1, m2 = m0 - d * n0, m1 - d * n1, m2 - d * n2
+        mm = math.sqrt(m0 * m0 + m1 * m1 + m2 * m2)
+        if mm < 1e-9:  # tangent along the normal: take any direction across it
+            if abs(n0) < 0.9:
+                m0, m1, m2 = 1.0 - n0 * n0, -n0 * n1, -n0 * n2
             else:
-                n0, n1, n2 = 0.0, 0.0, 1.0
+                m0, m1, m2 = -n1 * n0, 1.0 - n1 * n1, -n1 * n2
             mm = math.sqrt(m0 * m0 + m1 * m1 + m2 * m2)
-            if mm < 1e-12:
-                m0, m1, m2 = r0, r1, r2
-            d = m0 * n0 + m1 * n1 + m2 * n2
-            m0, m1, m2 = m0 - d * n0, m1 - d * n1, m2 - d * n2
-            mm = math.sqrt(m0 * m0 + m1 * m1 + m2 * m2)
-            if mm < 1e-9:  # tangent along the normal: take any direction across it
-                if abs(n0) < 0.9:
-                    m0, m1, m2 = 1.0 - n0 * n0, -n0 * n1, -n0 * n2
-                else:
-                    m0, m1, m2 = -n1 * n0, 1.0 - n1 * n1, -n1 * n2
-                mm = math.sqrt(m0 * m0 + m1 * m1 + m2 * m2)
-            m0, m1, m2 = m0 / mm, m1 / mm, m2 / mm
-            b0, b1, b2 = n1 * m2 - n2 * m1, n2 * m0 - n0 * m2, n0 * m1 - n1 * m0
-            i0, i1 = np.int64(math.floor(lo0 / side)), np.int64(math.floor(hi0 / side))
-            j0, j1 = np.int64(math.floor(lo1 / side)), np.int64(math.floor(hi1 / side))
-            k0, k1 = np.int64(math.floor(lo2 / side)), np.int64(math.floor(hi2 / side))
-            # Everything below is relative to the corner of cell (i0, j0, k0): exact at any |p|.
-            ox, oy, oz = float(i0) * side, float(j0) * side, float(k0) * side
-            cx_ = cy_ = cz_ = 0.0
-            for m in range(s0, s1):
-                k = order[m]
-                cx_ += points[k, 0] * scale - ox
-                cy_ += points[k, 1] * scale - oy
-                cz_ += points[k, 2] * scale - oz
-            inv = 1.0 / (s1 - s0)
-            cx_, cy_, cz_ = cx_ * inv, cy_ * inv, cz_ * inv
-            rp = rb = rn = rbe = eps_max = 0.0
-            for m in range(s0, s1):
-                k = order[m]
-                ex = points[k, 0] * scale - ox - cx_
-                ey = points[k, 1] * scale - oy - cy_
-                ez = points[k, 2] * scale - oz - cz_
-                rp = max(rp, abs(ex * m0 + ey * m1 + ez * m2))
-                rb = max(rb, abs(ex * b0 + ey * b1 + ez * b2))
-                rn = max(rn, abs(ex * n0 + ey * n1 + ez * n2))
-                dt = tangents[k, 0] * m0 + tangents[k, 1] * m1 + tangents[k, 2] * m2
-                eps = math.sqrt(max(1.0 - dt * dt, 0.0))
-                eps_max = max(eps_max, eps)
-                rbe = max(rbe, 0.5 * math.sqrt(1.0 / (1.0 - squeeze[k])) * eps)
-            rp += 0.5 * eps_max
-            half = 0.5 * math.sqrt(1.0 / (1.0 - c_max))  # the longest kernel's half-length
-            inv_half = 1.0 / half
-            hd = _HALF_DIAGONAL * side
-            along = half + rp + hd
-            radius = math.sqrt((rb + hd + rbe + 0.5) ** 2 + (rn + hd + rbe + 0.5) ** 2)
-            rl0, rh0 = lo0 - ox, hi0 - ox
-            rl1, rh1 = lo1 - oy, hi1 - oy
-            rl2, rh2 = lo2 - oz, hi2 - oz
-            need = (i1 - i0 + 1) * (j1 - j0 + 1) * (k1 - k0 + 1) * nc
-            if need > cap:
-                cap = 2 * need
-                bx, by, bz, ba = np.empty(cap), np.empty(cap), np.empty(cap), np.empty(cap)
-            count = 0
-            for cz in range(k0, k1 + 1):
-                fz = float(cz - k0) * side
-                for cy in range(j0, j1 + 1):
-                    fy = float(cy - j0) * side
-                    first, last = _row_span(
-                        fy + 0.5 * side - cy_,
-                        fz + 0.5 * side - cz_,
-                        cx_,
-                        m0,
-                        m1,
-                        m2,
-                        along,
-                        radius,
-                        side,
-                        i1 - i0 + 1,
+        m0, m1, m2 = m0 / mm, m1 / mm, m2 / mm
+        b0, b1, b2 = n1 * m2 - n2 * m1, n2 * m0 - n0 * m2, n0 * m1 - n1 * m0
+        i0, i1 = np.int64(math.floor(lo0 / side)), np.int64(math.floor(hi0 / side))
+        j0, j1 = np.int64(math.floor(lo1 / side)), np.int64(math.floor(hi1 / side))
+        k0, k1 = np.int64(math.floor(lo2 / side)), np.int64(math.floor(hi2 / side))
+        # Everything below is relative to the corner of cell (i0, j0, k0): exact at any |p|.
+        ox, oy, oz = float(i0) * side, float(j0) * side, float(k0) * side
+        cx_ = cy_ = cz_ = 0.0
+        for m in range(s0, s1):
+            k = order[m]
+            cx_ += points[k, 0] * scale - ox
+            cy_ += points[k, 1] * scale - oy
+            cz_ += points[k, 2] * scale - oz
+        inv = 1.0 / (s1 - s0)
+        cx_, cy_, cz_ = cx_ * inv, cy_ * inv, cz_ * inv
+        rp = rb = rn = rbe = eps_max = 0.0
+        for m in range(s0, s1):
+            k = order[m]
+            ex = points[k, 0] * scale - ox - cx_
+            ey = points[k, 1] * scale - oy - cy_
+            ez = points[k, 2] * scale - oz - cz_
+            rp = max(rp, abs(ex * m0 + ey * m1 + ez * m2))
+            rb = max(rb, abs(ex * b0 + ey * b1 + ez * b2))
+            rn = max(rn, abs(ex * n0 + ey * n1 + ez * n2))
+            dt = tangents[k, 0] * m0 + tangents[k, 1] * m1 + tangents[k, 2] * m2
+            eps = math.sqrt(max(1.0 - dt * dt, 0.0))
+            eps_max = max(eps_max, eps)
+            rbe = max(rbe, 0.5 * math.sqrt(1.0 / (1.0 - squeeze[k])) * eps)
+        rp += 0.5 * eps_max
+        half = 0.5 * math.sqrt(1.0 / (1.0 - c_max))  # the longest kernel's half-length
+        inv_half = 1.0 / half
+        hd = _HALF_DIAGONAL * side
+        along = half + rp + hd
+        radius = math.sqrt((rb + hd + rbe + 0.5) ** 2 + (rn + hd + rbe + 0.5) ** 2)
+        rl0, rh0 = lo0 - ox, hi0 - ox
+        rl1, rh1 = lo1 - oy, hi1 - oy
+        rl2, rh2 = lo2 - oz, hi2 - oz
+        need = (i1 - i0 + 1) * (j1 - j0 + 1) * (k1 - k0 + 1) * nc
+        if need > cap:
+            cap = 2 * need
+            bx, by, bz, ba = np.empty(cap), np.empty(cap), np.empty(cap), np.empty(cap)
+        count = 0
+        for cz in range(k0, k1 + 1):
+            fz = float(cz - k0) * side
+            for cy in range(j0, j1 + 1):
+                fy = float(cy - j0) * side
+                first, last = _row_span(
+                    fy + 0.5 * side - cy_,
+                    fz + 0.5 * side - cz_,
+                    cx_,
+                    m0,
+                    m1,
+                    m2,
+                    along,
+                    radius,
+                    side,
+                    i1 - i0 + 1,
+                )
+                for ci in range(first, last + 1):
+                    cx = i0 + ci
+                    fx = float(ci) * side
+                    ex, ey, ez = fx + 0.5 * side - cx_, fy + 0.5 * side - cy_, fz + 0.5 * side - cz_
+                    if not _reachable(
+                        ex * m0 + ey * m1 + ez * m2,
+                        ex * b0 + ey * b1 + ez * b2,
+                        ex * n0 + ey * n1 + ez * n2,
+                        rp + hd,
+                        rb + hd,
+                        rn + hd,
+                        rbe,
+                        inv_half,
+                    ):
+                        continue
+                    slot = np.int64(
+                        (np.uint64(cx * 73856093) ^ np.uint64(cy * 19349663) ^ np.uint64(cz * 83492791))
+                        & np.uint64(_CACHE_SLOTS - 1)
                     )
-                    for ci in range(first, last + 1):
-                        cx = i0 + ci
-                        fx = float(ci) * side
-                        ex, ey, ez = fx + 0.5 * side - cx_, fy + 0.5 * side - cy_, fz + 0.5 * side - cz_
-                        if not _reachable(
-                            ex * m0 + ey * m1 + ez * m2,
-                            ex * b0 + ey * b1 + ez * b2,
-                            ex * n0 + ey * n1 + ez * n2,
-                            rp + hd,
-                            rb + hd,
-                            rn + hd,
-                            rbe,
-                            inv_half,
-                        ):
-                            continue
-                        slot = np.int64(
-                            (np.uint64(cx * 73856093) ^ np.uint64(cy * 19349663) ^ np.uint64(cz * 83492791))
-                            & np.uint64(_CACHE_SLOTS - 1)
-                        )
-                        if cache_key[slot, 0] != cx or cache_key[slot, 1] != cy or cache_key[slot, 2] != cz:
-                            cache_key[slot, 0], cache_key[slot, 1], cache_key[slot, 2] = cx, cy, cz
-                            base = _cell_base(mode_hash, key, nc, cx, cy, cz)
-                            for j in range(nc):
-                                n = base + np.uint64(4 * (j + 1))
-                                cache[slot, j, 0] = stream_uniform(key, n + np.uint64(1)) * side
-                                cache[slot, j, 1] = stream_uniform(key, n + np.uint64(2)) * side
-                                cache[slot, j, 2] = stream_uniform(key, n + np.uint64(3)) * side
-                                cache[slot, j, 3] = 2.0 * stream_uniform(key, n) - 1.0
+                    if cache_key[slot, 0] != cx or cache_key[slot, 1] != cy or cache_key[slot, 2] != cz:
+                        cache_key[slot, 0], cache_key[slot, 1], cache_key[slot, 2] = cx, cy, cz
+                        base = _cell_base(mode_hash, key, nc, cx, cy, cz)
                         for j in range(nc):
-                            x = fx + cache[slot, j, 0]
-                            y = fy + cache[slot, j, 1]
-                            z = fz + cache[slot, j, 2]
-                            ex, ey, ez = x - cx_, y - cy_, z - cz_
-                            qa = max(abs(ex * m0 + ey * m1 + ez * m2) - rp, 0.0) * inv_half
-                            qb = max(abs(ex * b0 + ey * b1 + ez * b2) - rb, 0.0)
-                            qn = max(abs(ex * n0 + ey * n1 + ez * n2) - rn, 0.0)
-                            qq = 2.0 * max(math.sqrt(qb * qb + qn * qn) - rbe, 0.0)
-                            keep = (x > rl0) & (x < rh0) & (y > rl1) & (y < rh1) & (z > rl2) & (z < rh2)
-                            keep = keep & (qa * qa + qq * qq < 1.0)
-                            # Written unconditionally and kept by advancing the count.
-                            bx[count], by[count], bz[count], ba[count] = x, y, z, cache[slot, j, 3]
-                            count += keep
-            for m in range(s0, s1):
-                k = order[m]
-                px = points[k, 0] * scale - ox
-                py = points[k, 1] * scale - oy
-                pz = points[k, 2] * scale - oz
-                t0, t1, t2 = tangents[k, 0], tangents[k, 1], tangents[k, 2]
-                c = squeeze[k]
-                total = 0.0
-                for i in range(count):
-                    dx, dy, dz = bx[i] - px, by[i] - py, bz[i] - pz
-                    dt = dx * t0 + dy * t1 + dz * t2
-                    w = max(1.0 - 4.0 * (dx * dx + dy * dy + dz * dz - c * dt * dt), 0.0)
-                    total += ba[i] * (w * w * w)
-                out[k] = amp[k] * total
+                            n = base + np.uint64(4 * (j + 1))
+                            cache[slot, j, 0] = stream_uniform(key, n + np.uint64(1)) * side
+                            cache[slot, j, 1] = stream_uniform(key, n + np.uint64(2)) * side
+                            cache[slot, j, 2] = stream_uniform(key, n + np.uint64(3)) * side
+                            cache[slot, j, 3] = 2.0 * stream_uniform(key, n) - 1.0
+                    for j in range(nc):
+                        x = fx + cache[slot, j, 0]
+                        y = fy + cache[slot, j, 1]
+                        z = fz + cache[slot, j, 2]
+                        ex, ey, ez = x - cx_, y - cy_, z - cz_
+                        qa = max(abs(ex * m0 + ey * m1 + ez * m2) - rp, 0.0) * inv_half
+                        qb = max(abs(ex * b0 + ey * b1 + ez * b2) - rb, 0.0)
+                        qn = max(abs(ex * n0 + ey * n1 + ez * n2) - rn, 0.0)
+                        qq = 2.0 * max(math.sqrt(qb * qb + qn * qn) - rbe, 0.0)
+                        keep = (x > rl0) & (x < rh0) & (y > rl1) & (y < rh1) & (z > rl2) & (z < rh2)
+                        keep = keep & (qa * qa + qq * qq < 1.0)
+                        # Written unconditionally and kept by advancing the count.
+                        bx[count], by[count], bz[count], ba[count] = x, y, z, cache[slot, j, 3]
+                        count += keep
+        for m in range(s0, s1):
+            k = order[m]
+            px = points[k, 0] * scale - ox
+            py = points[k, 1] * scale - oy
+            pz = points[k, 2] * scale - oz
+            t0, t1, t2 = tangents[k, 0], tangents[k, 1], tangents[k, 2]
+            c = squeeze[k]
+            total = 0.0
+            for i in range(count):
+                dx, dy, dz = bx[i] - px, by[i] - py, bz[i] - pz
+                dt = dx * t0 + dy * t1 + dz * t2
+                w = max(1.0 - 4.0 * (dx * dx + dy * dy + dz * dz - c * dt * dt), 0.0)
+                total += ba[i] * (w * w * w)
+            out[k] = amp[k] * total

@@ -286,9 +286,7 @@ def _walk_hits(
                 d_sq = qx * qx + qy * qy + qz * qz
                 if d_sq < tol_sq and d_sq < best[w]:
                     if n_hits == hits.shape[0]:  # (rare: a long streamline meets many vertices)
-                        grown = np.empty((2 * hits.shape[0], 3))
-                        grown[:n_hits] = hits
-                        hits = grown
+                        hits = _grow(hits, 2 * hits.shape[0])
                     hits[n_hits, 0] = w
                     hits[n_hits, 1] = sign * (arc0 + s / h)
                     hits[n_hits, 2] = d_sq
@@ -320,7 +318,11 @@ def _grow(a, need):
     while size < need:
         size *= 2
     grown = np.empty((size,) + a.shape[1:], dtype=a.dtype)
-    grown[: a.shape[0]] = a
+    # Copied element by element over flat views (both C-contiguous): a slice assignment
+    # compiles numba's shape checks and their error messages, seconds of the warm-up.
+    flat, into = a.reshape(a.size), grown.reshape(grown.size)
+    for i in range(a.size):
+        into[i] = flat[i]
     return grown
 
 
@@ -396,13 +398,16 @@ def _trace_reuse(V, F, FN, NBR, T, starts, h, n_window, n_long, tol_sq, members,
             hits_b,
         )
         pos = _grow(pos, n_pos + nb + 1 + nf)
+        # Component by component: a row assignment compiles numba's shape checks (seconds).
         for j in range(nb):
-            pos[n_pos + j] = back[nb - 1 - j]
+            for c in range(3):
+                pos[n_pos + j, c] = back[nb - 1 - j, c]
         pos[n_pos + nb, 0] = x
         pos[n_pos + nb, 1] = y
         pos[n_pos + nb, 2] = z
         for j in range(nf):
-            pos[n_pos + nb + 1 + j] = fwd[j]
+            for c in range(3):
+                pos[n_pos + nb + 1 + j, c] = fwd[j, c]
         line_start = _grow(line_start, n_lines + 2)
         line_zero = _grow(line_zero, n_lines + 1)
         line_start[n_lines] = n_pos

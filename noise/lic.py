@@ -86,7 +86,10 @@ def _field(u: np.ndarray, v: np.ndarray, x: float, y: float) -> tuple[float, flo
     return du / norm, dv / norm, True
 
 
-@njit(cache=True, inline="always")
+# Not inlined: at numba's IR level each call site of ``_step`` inlined twelve bilinear lookups
+# (both integrators), and the exact and Stalling-Hege kernels took 7 and 9 s to compile; as a
+# call they take 4 and 3 s and run as fast (a step is two or four field lookups).
+@njit(cache=True)
 def _step(u, v, x: float, y: float, h: float, rk4: bool) -> tuple[float, float, bool]:
     """One Runge-Kutta step of signed length h from (x, y) along the unit field."""
     k1x, k1y, ok = _field(u, v, x, y)

@@ -62,12 +62,31 @@ def slice_heights(height_mm: float, layer_height_mm: float, initial_layer_height
 
 
 @njit(cache=True)
+def _first_at_least(sorted_values: np.ndarray, value: float) -> np.int64:
+    """``np.searchsorted(sorted_values, value, side="left")``, NaN sorting last as there.
+
+    By hand: numba's ``np.searchsorted`` compiles its generic comparison (complex numbers
+    included), about a second of the warm-up for every kernel that slices."""
+    lo = np.int64(0)
+    hi = np.int64(sorted_values.shape[0])
+    nan = value != value
+    while lo < hi:
+        mid = (lo + hi) >> 1
+        v = sorted_values[mid]
+        if v < value or (nan and v == v):
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
+
+
+@njit(cache=True)
 def _count_segments(tri_z_min, tri_z_max, heights) -> np.ndarray:
     counts = np.zeros(tri_z_min.shape[0] + 1, dtype=np.int64)
     for t in range(tri_z_min.shape[0]):
         # planes with z_min <= z < z_max: the triangle has vertices on both sides
-        lo = np.searchsorted(heights, tri_z_min[t], side="left")
-        hi = np.searchsorted(heights, tri_z_max[t], side="left")
+        lo = _first_at_least(heights, tri_z_min[t])
+        hi = _first_at_least(heights, tri_z_max[t])
         counts[t + 1] = max(hi - lo, 0)
     for t in range(tri_z_min.shape[0]):
         counts[t + 1] += counts[t]
@@ -77,15 +96,15 @@ def _count_segments(tri_z_min, tri_z_max, heights) -> np.ndarray:
 @njit(cache=True, parallel=True)
 def _segments(V, F, N, heights, tri_z_min, tri_z_max, offsets, layer, seg) -> None:
     for t in prange(F.shape[0]):
-        lo = np.searchsorted(heights, tri_z_min[t], side="left")
-        hi = np.searchsorted(heights, tri_z_max[t], side="left")
+        lo = _first_at_least(heights, tri_z_min[t])
+        hi = _first_at_least(heights, tri_z_max[t])
         out = offsets[t]
         a, b, c = F[t, 0], F[t, 1], F[t, 2]
         for k in range(lo, hi):
             z = heights[k]
-            # Collect the two points where the triangle's edges cross the plane.
-            px = np.empty(2)
-            py = np.empty(2)
+            # Collect the two points where the triangle's edges cross the plane (in scalars:
+            # two small arrays here were two allocations per triangle and plane).
+            px0 = py0 = px1 = py1 = 0.0
             n = 0
             for i0, i1 in ((a, b), (b, c), (c, a)):
                 z0, z1 = V[i0, 2], V[i1, 2]
@@ -93,8 +112,12 @@ def _segments(V, F, N, heights, tri_z_min, tri_z_max, offsets, layer, seg) -> No
                 above1 = z1 >= z
                 if above0 != above1 and n < 2:
                     s = (z - z0) / (z1 - z0)
-                    px[n] = V[i0, 0] + s * (V[i1, 0] - V[i0, 0])
-                    py[n] = V[i0, 1] + s * (V[i1, 1] - V[i0, 1])
+                    qx = V[i0, 0] + s * (V[i1, 0] - V[i0, 0])
+                    qy = V[i0, 1] + s * (V[i1, 1] - V[i0, 1])
+                    if n == 0:
+                        px0, py0 = qx, qy
+                    else:
+                        px1, py1 = qx, qy
                     n += 1
             layer[out] = k
             if n < 2:
@@ -102,10 +125,10 @@ def _segments(V, F, N, heights, tri_z_min, tri_z_max, offsets, layer, seg) -> No
             else:
                 # Solid on the left: the direction is the outward normal turned by +90 degrees.
                 tx, ty = -N[t, 1], N[t, 0]
-                if (px[1] - px[0]) * tx + (py[1] - py[0]) * ty >= 0:
-                    seg[out, 0], seg[out, 1], seg[out, 2], seg[out, 3] = px[0], py[0], px[1], py[1]
+                if (px1 - px0) * tx + (py1 - py0) * ty >= 0:
+                    seg[out, 0], seg[out, 1], seg[out, 2], seg[out, 3] = px0, py0, px1, py1
                 else:
-                    seg[out, 0], seg[out, 1], seg[out, 2], seg[out, 3] = px[1], py[1], px[0], py[0]
+                    seg[out, 0], seg[out, 1], seg[out, 2], seg[out, 3] = px1, py1, px0, py0
             out += 1
 
 
@@ -114,7 +137,7 @@ def _straddle(z0: float, z1: float, z2: float, heights):
     """Slice planes [lo, hi) that a triangle with these vertex heights straddles."""
     zmin = min(z0, min(z1, z2))
     zmax = max(z0, max(z1, z2))
-    return np.searchsorted(heights, zmin, side="left"), np.searchsorted(heights, zmax, side="left")
+    return _first_at_least(heights, zmin), _first_at_least(heights, zmax)
 
 
 @njit(cache=True, inline="always")

@@ -290,3 +290,18 @@ def test_layer_kernels_compile_once_wherever_a_layer_falls():
     assert max(widths) == slices.cols and min(widths) < slices.cols // 2
     assert len(_max_winding.signatures) == 1
     assert len(_rasterise_layer_grey.signatures) == 1
+
+
+def test_the_plane_search_is_numpys_searchsorted():
+    """The slicer's hand-written binary search against ``np.searchsorted(side="left")``: repeated
+    heights, values on, between and beyond them, infinities and NaN (which sorts last)."""
+    from slicing.raster import _first_at_least
+
+    rng = np.random.default_rng(3)
+    for size in (0, 1, 2, 7, 64, 801):
+        heights = np.sort(np.round(rng.uniform(0.0, 10.0, size), 1))  # rounding repeats some
+        probes = np.concatenate(
+            [heights, heights + 0.05, rng.uniform(-1.0, 11.0, 50), [-np.inf, np.inf, np.nan, 0.0, 10.0]]
+        )
+        expected = np.searchsorted(heights, probes, side="left")
+        assert [_first_at_least(heights, float(p)) for p in probes] == expected.tolist()

@@ -102,9 +102,9 @@ def _segments(V, F, N, heights, tri_z_min, tri_z_max, offsets, layer, seg) -> No
         a, b, c = F[t, 0], F[t, 1], F[t, 2]
         for k in range(lo, hi):
             z = heights[k]
-            # Collect the two points where the triangle's edges cross the plane (in scalars:
-            # two small arrays here were two allocations per triangle and plane).
-            px0 = py0 = px1 = py1 = 0.0
+            # Collect the two points where the triangle's edges cross the plane.
+            px = np.empty(2)
+            py = np.empty(2)
             n = 0
             for i0, i1 in ((a, b), (b, c), (c, a)):
                 z0, z1 = V[i0, 2], V[i1, 2]
@@ -112,12 +112,8 @@ def _segments(V, F, N, heights, tri_z_min, tri_z_max, offsets, layer, seg) -> No
                 above1 = z1 >= z
                 if above0 != above1 and n < 2:
                     s = (z - z0) / (z1 - z0)
-                    qx = V[i0, 0] + s * (V[i1, 0] - V[i0, 0])
-                    qy = V[i0, 1] + s * (V[i1, 1] - V[i0, 1])
-                    if n == 0:
-                        px0, py0 = qx, qy
-                    else:
-                        px1, py1 = qx, qy
+                    px[n] = V[i0, 0] + s * (V[i1, 0] - V[i0, 0])
+                    py[n] = V[i0, 1] + s * (V[i1, 1] - V[i0, 1])
                     n += 1
             layer[out] = k
             if n < 2:
@@ -125,10 +121,10 @@ def _segments(V, F, N, heights, tri_z_min, tri_z_max, offsets, layer, seg) -> No
             else:
                 # Solid on the left: the direction is the outward normal turned by +90 degrees.
                 tx, ty = -N[t, 1], N[t, 0]
-                if (px1 - px0) * tx + (py1 - py0) * ty >= 0:
-                    seg[out, 0], seg[out, 1], seg[out, 2], seg[out, 3] = px0, py0, px1, py1
+                if (px[1] - px[0]) * tx + (py[1] - py[0]) * ty >= 0:
+                    seg[out, 0], seg[out, 1], seg[out, 2], seg[out, 3] = px[0], py[0], px[1], py[1]
                 else:
-                    seg[out, 0], seg[out, 1], seg[out, 2], seg[out, 3] = px1, py1, px0, py0
+                    seg[out, 0], seg[out, 1], seg[out, 2], seg[out, 3] = px[1], py[1], px[0], py[0]
             out += 1
 
 

@@ -20,6 +20,9 @@ agree: each is unbiased), the relative noise, the seconds and the efficiency 1 /
   and its emission (the soft box's glint) added with weight F, whichever lobe was drawn: the
   glints' variance from the lobe choice taken away.
 
+For ``path`` it also gives where the variance is: the share of it in pixels by their mean
+luminance (the soft box's reflections are the band 0.4-0.8).
+
 Part 2, stratification: 20,000 object pixels drawn at random, rendered with 16, 64 and 256
 samples a pixel in passes of 1, 4, 16, 64 and 256 (each pass one randomisation of Mitsuba's
 ``ldsampler``), twice with independent seeds; the mean variance of a pixel's estimate, over all
@@ -151,6 +154,14 @@ def main(path: str, spp: int) -> None:
         print(f"{name:20s} mean {mean:.5f} noise {noise:7.3%} {seconds:6.2f} s efficiency {efficiency:6.1f}")
         if name == "path":
             means = 0.5 * (_lum(a) + _lum(b)).ravel()
+            variance = ((_lum(a) - _lum(b)) ** 2 / 4.0).ravel()
+            print(
+                "  path's variance by the pixel's mean luminance: share of object pixels, share of variance"
+            )
+            for low, high in ((0.0, 0.1), (0.1, 0.2), (0.2, 0.4), (0.4, 0.8), (0.8, np.inf)):
+                band = mask.ravel() & (means >= low) & (means < high)
+                pixels_share, variance_share = band.sum() / mask.sum(), variance[band].sum() / variance.sum()
+                print(f"    {low:.1f}-{high:.1f}: {pixels_share:6.1%} {variance_share:6.1%}")
     assert means is not None
     print("\nstratification: mean variance of a pixel's estimate (all / glints), seconds")
     pixels = np.sort(np.random.default_rng(0).choice(np.flatnonzero(mask.ravel()), 20_000, replace=False))

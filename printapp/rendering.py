@@ -64,6 +64,11 @@ def noise_record(preview: Preview) -> dict[str, Any] | None:
         "denoised_error": None if c.denoised_error is None else round(c.denoised_error, 5),
         "denoiser": preview.denoiser,
         "history": [[spp, round(noise, 5)] for spp, noise in c.history],
+        "lamp_caustics": (
+            f"light-traced: {c.light_paths:,} paths from the lamps (render.caustics)"
+            if c.light_paths
+            else "path-traced with the rest"
+        ),
     }
 
 
@@ -75,6 +80,8 @@ def noise_summary(preview: Preview) -> tuple[bool, str]:
     low, high = c.spp_range
     spread = f" ({low}-{high}, more where the noise is)" if high > low else ""
     how = f"{c.spp} samples per pixel{spread} in {c.seconds:.1f} s"
+    if c.light_paths:
+        how += f" (the lamps' caustics light-traced, {c.light_paths / 1e6:.1f} M paths)"
     denoised = ""
     if c.denoised:
         denoised = (
@@ -376,14 +383,24 @@ def _converge(
             time_cap_s=r.time_cap_s,
             adaptive=r.sampling == "adaptive",
         )
+    render, caustics = renderer.render, None
+    if fixed_spp is None:
+        # A coated relief's lamp caustics are light-traced, the rest path-traced (render.caustics):
+        # on part_relief the same noise for two thirds of the time.
+        from render.caustics import caustic_split
+
+        split = caustic_split(renderer, mask, r.seed)
+        if split is not None:
+            render, caustics = split
     result = converge(
-        renderer.render,
+        render,
         mask,
         seed=r.seed,
         settings=settings,
         denoiser=denoiser,
         guides=(guides["albedo"], guides["normal"]),
         denoiser_name=denoiser_name,
+        caustics=caustics,
     )
     return result, denoiser_name, int(mask.sum())
 

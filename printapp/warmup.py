@@ -160,6 +160,37 @@ def _render() -> None:
         height_px=12,
         spp=1,
     )
+    _caustic_split()
+
+
+def _caustic_split() -> None:
+    """The kernels of a coated relief's preview split into camera and light paths (render.caustics)."""
+    import trimesh
+
+    from render.caustics import CausticFreePath, caustic_image, coat_of, lamps_of
+    from render.mitsuba_adapter import resin_scene_dict
+    from render.progressive import SampleRenderer
+
+    box = trimesh.creation.box((2.0, 2.0, 1.0))
+    scene_dict, frame = resin_scene_dict(
+        np.asarray(box.vertices),
+        np.asarray(box.faces),
+        body_albedo=(0.8, 0.5, 0.2),
+        refractive_index=1.5,
+        width_px=16,
+        height_px=12,
+    )
+    renderer = SampleRenderer(scene_dict, 16, 12)
+    if renderer.scalar:
+        return
+    coat = coat_of(scene_dict)
+    integrator = CausticFreePath(coat)
+    renderer.render(1, 0, integrator=integrator)  # the first round: every pixel
+    renderer.render(1, 0, np.arange(8), integrator=integrator)  # later rounds: listed pixels
+    lamps = lamps_of(renderer.scene, scene_dict)
+    frame_args = {"centre_mm": frame.centre, "radius_mm": frame.radius_mm, "width_px": 16, "height_px": 12}
+    _, guide = caustic_image(renderer.scene, coat, lamps, 1000, 0, learn=True, **frame_args)
+    caustic_image(renderer.scene, coat, lamps, 1000, 1, guide=guide, **frame_args)
 
 
 STEPS: tuple[tuple[str, str, Callable[[], None]], ...] = (

@@ -451,27 +451,20 @@ def resin_scene_dict(
         "relief": relief,
     }
     placed = lamp_transforms(frame, places, light, distance_scale)  # (both lamps; unlit ones are left out)
-    if light.radiance > 0.0:
-        # (Without light, no box either: a dark box would shade the environment.)
-        scene_dict["softbox"] = {
-            "type": "rectangle",
-            "to_world": placed["softbox"],
-            "emitter": {
-                "type": "area",
-                "radiance": {"type": "rgb", "value": [light.radiance] * 3},
-                "sampling_weight": weights["softbox"],
-            },
-        }
-    if light.highlight_radiance > 0.0:
-        scene_dict["spot"] = {
-            "type": "rectangle",
-            "to_world": placed["spot"],
-            "emitter": {
-                "type": "area",
-                "radiance": {"type": "rgb", "value": [light.highlight_radiance] * 3},
-                "sampling_weight": weights["spot"],
-            },
-        }
+    # An unlit lamp is left out (a dark box would shade the environment). A lamp's face reflects
+    # nothing (Mitsuba's default is grey): render.caustics' split of the image is then exact.
+    for name, radiance in (("softbox", light.radiance), ("spot", light.highlight_radiance)):
+        if radiance > 0.0:
+            scene_dict[name] = {
+                "type": "rectangle",
+                "to_world": placed[name],
+                "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.0, 0.0, 0.0]}},
+                "emitter": {
+                    "type": "area",
+                    "radiance": {"type": "rgb", "value": [float(radiance)] * 3},
+                    "sampling_weight": weights[name],
+                },
+            }
     return scene_dict, frame
 
 

@@ -111,11 +111,20 @@ class SampleRenderer:
                 params[f"{name}.to_world"] = moved
             params.update()
 
-    def render(self, spp: int, seed: int, pixels: np.ndarray | None = None) -> np.ndarray:
+    @property
+    def scene_dict(self) -> dict[str, Any]:
+        """The scene's description, with the lamps where :meth:`move_shapes` put them."""
+        return self._dict
+
+    def render(
+        self, spp: int, seed: int, pixels: np.ndarray | None = None, integrator: Any = None
+    ) -> np.ndarray:
         """The mean of ``spp`` samples per pixel: ``(height, width, 3)`` float64 linear RGB.
 
         With ``pixels`` (flat indices ``row * width + column``), only those pixels are traced and
-        a ``(len(pixels), 3)`` array comes back (the others cost nothing).
+        a ``(len(pixels), 3)`` array comes back (the others cost nothing). ``integrator`` (an
+        object with Mitsuba's ``sample`` signature) replaces the scene's own on the vectorised
+        variants.
         """
         if spp < 1:
             raise ValueError(f"spp: expected at least 1, got {spp}")
@@ -123,8 +132,10 @@ class SampleRenderer:
             image = self._render_film(spp, seed)
             return image if pixels is None else image.reshape(-1, 3)[np.asarray(pixels)]
         if pixels is None:
-            return self._trace(self.scene, spp, seed, 3)
-        return self._trace(self.scene, spp, seed, 3, pixels=np.asarray(pixels, dtype=np.int64))
+            return self._trace(self.scene, spp, seed, 3, integrator=integrator)
+        return self._trace(
+            self.scene, spp, seed, 3, pixels=np.asarray(pixels, dtype=np.int64), integrator=integrator
+        )
 
     def aovs(self, spp: int, seed: int) -> dict[str, np.ndarray]:
         """Per-pixel means of the surface albedo, shading normal and coverage over ``spp`` samples.

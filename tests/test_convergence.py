@@ -377,3 +377,50 @@ def test_converge_measures_the_rate_and_does_not_overshoot(renderer):
     assert noise_rate([(16, 0.1), (128, 0.1 * 8**-0.6)]) == pytest.approx(0.6)
     assert noise_rate([(16, 0.1), (32, 0.01)]) == 0.5  # rounds too close: the safe side
     assert noise_rate([(16, 0.1), (128, 0.0001)]) == 0.75
+
+
+class Caustics:
+    """A light-traced part of known noise: ``true`` plus noise of ``sd`` per path in a patch."""
+
+    def __init__(self, mask):
+        h, w = mask.shape
+        y, x = np.mgrid[0:h, 0:w]
+        self.patch = mask & ((x - 0.6 * w) ** 2 + (y - 0.5 * h) ** 2 < (0.12 * w) ** 2)
+        self.true = np.where(self.patch, 0.03, 0.0)
+        self.sd = np.where(self.patch, 40.0, 0.0)
+        self.calls = []
+
+    def __call__(self, n_paths, seed):
+        self.calls.append((n_paths, seed))
+        rng = np.random.default_rng(seed)
+        out = self.true + self.sd / math.sqrt(n_paths) * rng.standard_normal(self.true.shape)
+        return np.repeat(out[..., None], 3, axis=-1)
+
+
+def test_a_light_traced_part_is_added_to_each_half_and_kept_within_its_share():
+    from render.convergence import LIGHT_SHARE
+
+    def run():
+        camera = Synthetic()
+        camera.clean = camera.clean - Caustics(camera.mask).true  # the camera leaves that part out
+        light = Caustics(camera.mask)
+        settings = ConvergenceSettings(target=0.01, first_spp=2, max_spp=1 << 14, time_cap_s=1e9)
+        return camera, light, converge(camera, camera.mask, seed=7, settings=settings, caustics=light)
+
+    camera, light, one = run()
+    _, again_light, two = run()
+    assert np.array_equal(one.image, two.image) and light.calls == again_light.calls
+    assert one.converged and one.noise <= 0.01
+    # the light paths grew round by round from a quarter of the first round's samples
+    first_paths = light.calls[0][0]
+    assert first_paths == camera.mask.sum() * 2 // 4
+    assert one.light_paths == 2 * sum(n for n, _ in light.calls[::2]) > 2 * first_paths
+    # the light-traced part's own variance (of the mean of halves) within its share of the goal
+    paths = one.light_paths // 2
+    clean = camera.clean + light.true
+    own = np.mean((light.sd[camera.mask] ** 2) / paths) / 2
+    goal = (0.01 * clean[camera.mask].mean()) ** 2
+    assert own <= 1.05 * LIGHT_SHARE * goal
+    # and the image delivered is the whole image: its error is the noise it reports
+    error = math.sqrt(np.mean((luminance(one.raw) - clean)[camera.mask] ** 2)) / clean[camera.mask].mean()
+    assert error == pytest.approx(one.noise, rel=0.15)

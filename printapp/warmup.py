@@ -144,6 +144,10 @@ def _materials() -> None:
     diffuse_box((3, 3, 3), 0.1, 1.0, 0.01, 0.0, 1.5, {"top": np.ones((3, 3))})
 
 
+_BOX = {"body_albedo": (0.8, 0.5, 0.2), "refractive_index": 1.5, "width_px": 16, "height_px": 12}
+"""The warm-up's scene: a small resin box under the studio light."""
+
+
 def _render() -> None:
     import trimesh
 
@@ -151,35 +155,17 @@ def _render() -> None:
 
     choose_variant()
     box = trimesh.creation.box((2.0, 2.0, 1.0))
-    render_resin_mesh(
-        np.asarray(box.vertices),
-        np.asarray(box.faces),
-        body_albedo=(0.8, 0.5, 0.2),
-        refractive_index=1.5,
-        width_px=16,
-        height_px=12,
-        spp=1,
-    )
-    _caustic_split()
+    render_resin_mesh(np.asarray(box.vertices), np.asarray(box.faces), spp=1, **_BOX)
+    _caustic_split(np.asarray(box.vertices), np.asarray(box.faces))
 
 
-def _caustic_split() -> None:
+def _caustic_split(vertices: np.ndarray, faces: np.ndarray) -> None:
     """The kernels of a coated relief's preview split into camera and light paths (render.caustics)."""
-    import trimesh
-
     from render.caustics import CausticFreePath, caustic_image, coat_of, lamps_of
     from render.mitsuba_adapter import resin_scene_dict
     from render.progressive import SampleRenderer
 
-    box = trimesh.creation.box((2.0, 2.0, 1.0))
-    scene_dict, frame = resin_scene_dict(
-        np.asarray(box.vertices),
-        np.asarray(box.faces),
-        body_albedo=(0.8, 0.5, 0.2),
-        refractive_index=1.5,
-        width_px=16,
-        height_px=12,
-    )
+    scene_dict, frame = resin_scene_dict(vertices, faces, **_BOX)
     renderer = SampleRenderer(scene_dict, 16, 12)
     if renderer.scalar:
         return

@@ -26,15 +26,11 @@ import sys
 import time
 
 import numpy as np
-import trimesh
+from preview_scene import HEIGHT, WIDTH, preview_scene  # (scripts/, beside this file)
 
 from render.caustics import CausticFreePath, caustic_image, caustic_split, coat_of, lamps_of
 from render.convergence import LUMINANCE, ConvergenceSettings, converge
-from render.mitsuba_adapter import PREVIEW_FOV_DEG, StudioLight, choose_variant, resin_scene_dict
 from render.progressive import SampleRenderer
-
-WIDTH, HEIGHT = 1024, 768
-BODY = (0.25, 0.45, 0.75)
 
 
 def _halves(renderer: SampleRenderer, pixels: np.ndarray, integrator, spp: int = 16) -> tuple:
@@ -45,19 +41,8 @@ def _halves(renderer: SampleRenderer, pixels: np.ndarray, integrator, spp: int =
 
 
 def main(paths: list[str]) -> None:
-    choose_variant()
     for path in paths:
-        mesh = trimesh.load(path)
-        scene, frame = resin_scene_dict(
-            np.asarray(mesh.vertices),
-            np.asarray(mesh.faces),
-            body_albedo=BODY,
-            refractive_index=1.5,
-            width_px=WIDTH,
-            height_px=HEIGHT,
-            fov_deg=PREVIEW_FOV_DEG,
-            light=StudioLight(),
-        )
+        _, _, scene, frame = preview_scene(path)
         renderer = SampleRenderer(scene, WIDTH, HEIGHT)
         mask = renderer.aovs(4, 0)["coverage"] >= 0.5
         pixels = np.flatnonzero(mask.ravel())

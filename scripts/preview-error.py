@@ -27,14 +27,11 @@ import sys
 import time
 
 import numpy as np
-import trimesh
+from preview_scene import BODY, HEIGHT, WIDTH, preview_scene  # (scripts/, beside this file)
 
 from render.convergence import _denoise_halves, _dilate, _lum, denoised_error, relative_noise
-from render.mitsuba_adapter import PREVIEW_FOV_DEG, StudioLight, choose_variant, mesh_object, resin_scene_dict
+from render.mitsuba_adapter import mesh_object
 from render.progressive import SampleRenderer, passes_of
-
-WIDTH, HEIGHT = 1024, 768
-BODY = (0.25, 0.45, 0.75)
 
 
 def halves(renderer: SampleRenderer, active: np.ndarray, spp: int) -> tuple[np.ndarray, np.ndarray]:
@@ -53,19 +50,7 @@ def halves(renderer: SampleRenderer, active: np.ndarray, spp: int) -> tuple[np.n
 def main(path: str, spp: int) -> None:
     import mitsuba as mi
 
-    choose_variant()
-    mesh = trimesh.load(path)
-    vertices, faces = np.asarray(mesh.vertices), np.asarray(mesh.faces)
-    scene, _ = resin_scene_dict(
-        vertices,
-        faces,
-        body_albedo=BODY,
-        refractive_index=1.5,
-        width_px=WIDTH,
-        height_px=HEIGHT,
-        fov_deg=PREVIEW_FOV_DEG,
-        light=StudioLight(),
-    )
+    vertices, faces, scene, _ = preview_scene(path)
     diffuse = mi.load_dict({"type": "diffuse", "reflectance": {"type": "rgb", "value": list(BODY)}})
     variants = {
         "full": scene,

@@ -37,15 +37,11 @@ import time
 from typing import Any
 
 import numpy as np
-import trimesh
+from preview_scene import HEIGHT, WIDTH, preview_scene  # (scripts/, beside this file)
 
 from render.convergence import LUMINANCE, _dilate, _lum, relative_noise
-from render.mitsuba_adapter import PREVIEW_FOV_DEG, StudioLight, choose_variant, resin_scene_dict
 from render.mitsuba_shared import fresnel_dr
 from render.progressive import SampleRenderer, passes_of
-
-WIDTH, HEIGHT = 1024, 768
-BODY = (0.25, 0.45, 0.75)
 
 
 def _power(a: Any, b: Any) -> Any:
@@ -120,18 +116,7 @@ def _halves(renderer: SampleRenderer, active: np.ndarray, spp: int, integrator: 
 
 
 def main(path: str, spp: int) -> None:
-    choose_variant()
-    mesh = trimesh.load(path)
-    scene, _ = resin_scene_dict(
-        np.asarray(mesh.vertices),
-        np.asarray(mesh.faces),
-        body_albedo=BODY,
-        refractive_index=1.5,
-        width_px=WIDTH,
-        height_px=HEIGHT,
-        fov_deg=PREVIEW_FOV_DEG,
-        light=StudioLight(),
-    )
+    _, _, scene, _ = preview_scene(path)
     renderer = SampleRenderer(scene, WIDTH, HEIGHT)
     mask = renderer.aovs(4, 0)["coverage"] >= 0.5
     active = np.flatnonzero(_dilate(mask, 2))

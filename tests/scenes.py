@@ -19,3 +19,20 @@ def box_scene(width_px: int = 64, height_px: int = 48, light=None):
         height_px=height_px,
         light=light,
     )
+
+
+def v_grooves(depth_mm: float = 2.0) -> tuple[np.ndarray, np.ndarray]:
+    """A 20 mm tile of V-grooves along y (right-angled: each face mirrors the lamps onto its
+    neighbour), or a flat tile for ``depth_mm = 0``: vertices and upward-facing triangles."""
+    xs = np.linspace(-10.0, 10.0, 11)  # ridges and valleys, 2 mm apart: every face planar
+    ys = np.linspace(-10.0, 10.0, 3)
+    x, y = np.meshgrid(xs, ys)
+    z = np.where(np.arange(xs.size) % 2 == 0, depth_mm, 0.0)[None, :] * np.ones_like(x)
+    vertices = np.stack([x.ravel(), y.ravel(), z.ravel()], axis=1)
+    faces = []
+    n = xs.size
+    for r in range(ys.size - 1):
+        for c in range(n - 1):
+            a, b, d, e = r * n + c, r * n + c + 1, (r + 1) * n + c, (r + 1) * n + c + 1
+            faces += [(a, b, e), (a, e, d)]
+    return vertices, np.asarray(faces)

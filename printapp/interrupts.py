@@ -5,6 +5,12 @@ The command line installs :func:`install_handlers`; a signal then raises
 imports in ``except BaseException`` and would swallow it, so the signal is also
 remembered: :func:`check` raises it again at every stage boundary and before any output
 is moved into place, so a swallowed interrupt cannot let a run finish and write.
+
+A signal that arrives while a module is being imported is held until the import is over
+(polled every :data:`RETRY_S`): an extension that runs Python code while it initialises
+(Mitsuba's enums, as Dr.Jit's nanobind builds them) cannot pass a Python exception back,
+and nanobind ends the process with ``std::terminate`` instead (SIGABRT and a C++ traceback,
+seen when Ctrl-C struck in the first seconds of ``printapp design``).
 """
 
 from __future__ import annotations
@@ -13,6 +19,9 @@ import signal
 from types import FrameType
 
 _received: int | None = None
+
+RETRY_S = 0.05
+"""How often a signal held during an import looks again whether the import is over (s)."""
 
 
 class Interrupted(BaseException):  # noqa: N818 (it is a signal, not an error)
@@ -31,10 +40,29 @@ class Interrupted(BaseException):  # noqa: N818 (it is a signal, not an error)
         return "interrupted" if self.signum == signal.SIGINT else "terminated"
 
 
+def _importing(frame: FrameType | None) -> bool:
+    """Whether the main thread is inside an import (importlib's frames on its stack)."""
+    while frame is not None:
+        if frame.f_code.co_filename.startswith("<frozen importlib"):
+            return True
+        frame = frame.f_back
+    return False
+
+
 def _handler(signum: int, frame: FrameType | None) -> None:
     global _received
     _received = signum
+    if _importing(frame) and hasattr(signal, "setitimer"):
+        signal.signal(signal.SIGALRM, _retry)
+        signal.setitimer(signal.ITIMER_REAL, RETRY_S)
+        return
     raise Interrupted(signum)
+
+
+def _retry(_signum: int, frame: FrameType | None) -> None:
+    """The timer of a signal held during an import: raise it now, or look again later."""
+    if _received is not None:
+        _handler(_received, frame)
 
 
 def install_handlers() -> None:

@@ -421,6 +421,36 @@ def test_signals_end_a_run_cleanly(tmp_path, signal_name, code, line):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["d.toml"]  # no output folder, no staging
 
 
+SELF_INTERRUPTING_IMPORT = """
+import os, signal, sys, time
+sys.path.insert(0, sys.argv[1])
+from printapp.interrupts import Interrupted, install_handlers
+install_handlers()
+try:
+    import slow_module  # signals itself half-way through its own import
+    print("import finished", slow_module.FINISHED, flush=True)
+    time.sleep(10)
+    print("never interrupted", flush=True)
+except Interrupted as stopped:
+    print("interrupted", stopped.exit_code, flush=True)
+"""
+
+
+def test_a_signal_during_an_import_waits_for_the_import(tmp_path):
+    """Where the timed test above failed once: Ctrl-C while Mitsuba's extension initialised ended the
+    process with SIGABRT and a C++ traceback. Held until the import is over, then raised."""
+    (tmp_path / "slow_module.py").write_text(
+        "import os, signal, time\nos.kill(os.getpid(), signal.SIGINT)\ntime.sleep(0.3)\nFINISHED = True\n"
+    )
+    run = subprocess.run(
+        [sys.executable, "-c", SELF_INTERRUPTING_IMPORT, str(tmp_path)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert run.stdout.split("\n")[:2] == ["import finished True", "interrupted 130"], run.stdout + run.stderr
+
+
 # ---------------------------------------------------------------------------------------------
 # Strategies
 

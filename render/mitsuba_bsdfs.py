@@ -94,7 +94,9 @@ MIRROR_PROBABILITY = 0.7
 """How often the coated resin draws its mirror reflection. Measured with 16 samples a half on four
 examples' previews (tag_with_slot, part_relief, brushed_cylinder, tile_fbm), the variance at
 0.7 was 0.77-0.92 times that at 0.5; 0.75 was even with 0.7, 0.8 worse on part_relief, 0.85
-and up worse still (the body's indirect light getting too few samples)."""
+and up worse still (the body's indirect light getting too few samples). Measured again with the
+unbiased ``multijitter`` sampler (docs/benchmarks.md, "Sixteenth run"): best on the demo, 3 %
+more variance than 0.6 on part_relief."""
 
 
 def coated_resin_bsdf(

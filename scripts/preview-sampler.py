@@ -32,29 +32,16 @@ from preview_scene import HEIGHT, WIDTH, preview_scene  # noqa: E402  (scripts/,
 import render.progressive as progressive  # noqa: E402
 from render.caustics import CausticFreePath, coat_of  # noqa: E402
 from render.convergence import LUMINANCE  # noqa: E402
-from render.fresnel import diffuse_fresnel_reflectance  # noqa: E402
-from render.mitsuba_adapter import choose_variant, resin_scene_dict  # noqa: E402
+from render.mitsuba_adapter import choose_variant  # noqa: E402
 from render.progressive import SampleRenderer  # noqa: E402
-from tests.scenes import v_grooves  # noqa: E402
+from tests.scenes import coated_grooves_renderer  # noqa: E402
 
 SAMPLERS = ("multijitter", "ldsampler", "stratified", "independent")
 TILE_W, TILE_H, TILE_SPP, TILE_SEEDS = 96, 72, 64, 128
 
 
 def _tile(p_mirror: float) -> SampleRenderer:
-    vertices, faces = v_grooves(2.0)
-    coat = {
-        "type": "printapp_coated",
-        "ior": 1.5,
-        "f_dr_int": float(diffuse_fresnel_reflectance(1.0 / 1.5)),
-        "mirror_probability": p_mirror,
-        "body": {"type": "rgb", "value": [0.25, 0.45, 0.75]},
-    }
-    scene, _ = resin_scene_dict(
-        vertices, faces, body_albedo=(0.25, 0.45, 0.75), refractive_index=1.5, width_px=TILE_W,
-        height_px=TILE_H, surface=coat,
-    )  # fmt: skip
-    return SampleRenderer(scene, TILE_W, TILE_H)
+    return coated_grooves_renderer(p_mirror, TILE_W, TILE_H)
 
 
 def _row(label: str, images: np.ndarray, mask: np.ndarray, spp: int) -> None:

@@ -36,3 +36,26 @@ def v_grooves(depth_mm: float = 2.0) -> tuple[np.ndarray, np.ndarray]:
             a, b, d, e = r * n + c, r * n + c + 1, (r + 1) * n + c, (r + 1) * n + c + 1
             faces += [(a, b, e), (a, e, d)]
     return vertices, np.asarray(faces)
+
+
+def coated_grooves_renderer(mirror_probability: float, width_px: int, height_px: int):
+    """The V-groove tile in the preview's scene (variant already chosen), its blue coated resin
+    drawing the mirror with this probability: a sampling parameter, on which the image's
+    expectation does not depend (render.progressive's sampler is checked against it)."""
+    from render.fresnel import diffuse_fresnel_reflectance
+    from render.mitsuba_adapter import resin_scene_dict
+    from render.progressive import SampleRenderer
+
+    vertices, faces = v_grooves(2.0)
+    coat = {
+        "type": "printapp_coated",
+        "ior": 1.5,
+        "f_dr_int": float(diffuse_fresnel_reflectance(1.0 / 1.5)),
+        "mirror_probability": float(mirror_probability),
+        "body": {"type": "rgb", "value": [0.25, 0.45, 0.75]},
+    }
+    scene_dict, _ = resin_scene_dict(
+        vertices, faces, body_albedo=(0.25, 0.45, 0.75), refractive_index=1.5, width_px=width_px,
+        height_px=height_px, surface=coat,
+    )  # fmt: skip
+    return SampleRenderer(scene_dict, width_px, height_px)

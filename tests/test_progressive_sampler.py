@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from render.convergence import LUMINANCE
-from tests.scenes import v_grooves
+from tests.scenes import coated_grooves_renderer
 
 WIDTH, HEIGHT = 96, 72
 SPP = 64
@@ -16,27 +16,12 @@ SEEDS = 16
 
 
 def _renderer(mirror_probability: float):
-    """The V-groove tile in the preview's scene, its coat drawing the mirror with this probability
-    (a sampling parameter: the image's expectation does not depend on it)."""
-    from render.fresnel import diffuse_fresnel_reflectance
-    from render.mitsuba_adapter import choose_variant, resin_scene_dict
-    from render.progressive import SampleRenderer
+    """The V-groove tile, its coat drawing the mirror with this probability."""
+    from render.mitsuba_adapter import choose_variant
 
     if choose_variant().variant.startswith("scalar"):
         pytest.skip("the stratified sampler runs on Mitsuba's vectorised variants")
-    vertices, faces = v_grooves(2.0)
-    coat = {
-        "type": "printapp_coated",
-        "ior": 1.5,
-        "f_dr_int": float(diffuse_fresnel_reflectance(1.0 / 1.5)),
-        "mirror_probability": float(mirror_probability),
-        "body": {"type": "rgb", "value": [0.25, 0.45, 0.75]},
-    }
-    scene_dict, _ = resin_scene_dict(
-        vertices, faces, body_albedo=(0.25, 0.45, 0.75), refractive_index=1.5, width_px=WIDTH,
-        height_px=HEIGHT, surface=coat,
-    )  # fmt: skip
-    return SampleRenderer(scene_dict, WIDTH, HEIGHT)
+    return coated_grooves_renderer(mirror_probability, WIDTH, HEIGHT)
 
 
 @pytest.fixture(scope="module")

@@ -47,6 +47,7 @@ def test_the_image_does_not_move_with_the_coats_mirror_probability(mask):
     assert drawn_often.mean() == pytest.approx(drawn_less.mean(), rel=0.002)
 
 
+@pytest.mark.slow
 def test_the_image_agrees_with_mitsubas_film_loop_and_independent_sampler(mask):
     import mitsuba as mi
 

@@ -191,7 +191,6 @@ class SampleRenderer:
         pixels: np.ndarray | None = None,
         integrator: Any = None,
     ) -> np.ndarray:
-
         if not _square_power_of_two(spp):
             raise ValueError(f"spp: the stratified sampler needs a power of four, got {spp}")
         w, h = self.width, self.height

@@ -10,7 +10,8 @@
    Every row averages over the same pixels (the mask is taken once, before the sampler changes:
    a mask taken with each sampler moves the means by more than the bias looked for). A
    reference that shares no code with ``render.progressive``: Mitsuba's own film loop
-   (``mi.render``, box filter) with its ``independent`` sampler.
+   (``mi.render``, box filter) with its ``independent`` sampler, on the vectorised variant and on
+   the scalar one (Mitsuba's C++ ``plastic`` in place of printapp's coat).
 2. For each MODEL.stl (e.g. the ``model.stl`` of ``printapp design examples/part_relief.toml``),
    in its preview scene (1024 x 768): a sample's relative noise and the seconds a pass takes, at
    passes of 4, 16 and 64, for ``multijitter``, ``ldsampler`` and ``independent``.
@@ -32,9 +33,9 @@ from preview_scene import HEIGHT, WIDTH, preview_scene  # noqa: E402  (scripts/,
 import render.progressive as progressive  # noqa: E402
 from render.caustics import CausticFreePath, coat_of  # noqa: E402
 from render.convergence import LUMINANCE  # noqa: E402
-from render.mitsuba_adapter import choose_variant  # noqa: E402
+from render.mitsuba_adapter import choose_variant, resin_scene_dict  # noqa: E402
 from render.progressive import SampleRenderer  # noqa: E402
-from tests.scenes import coated_grooves_renderer  # noqa: E402
+from tests.scenes import coated_grooves_renderer, v_grooves  # noqa: E402
 
 SAMPLERS = ("multijitter", "ldsampler", "stratified", "independent")
 TILE_W, TILE_H, TILE_SPP, TILE_SEEDS = 96, 72, 64, 128
@@ -83,6 +84,36 @@ def bias_table() -> None:
         )
         _row(f"p = {p_mirror}, mi.render + independent, path", images, mask, TILE_SPP)
     progressive.SAMPLER = "multijitter"
+    scalar_reference(mask)
+
+
+def scalar_reference(mask: np.ndarray) -> None:
+    """The tile on Mitsuba's scalar variant: its C++ ``plastic`` (the coat printapp's BSDF copies),
+    its film loop and its ``independent`` sampler; no code shared with render.progressive."""
+    import mitsuba as mi
+
+    vectorised = mi.variant()
+    mi.set_variant("scalar_rgb")
+    try:
+        vertices, faces = v_grooves(2.0)
+        scene_dict, _ = resin_scene_dict(
+            vertices, faces, body_albedo=(0.25, 0.45, 0.75), refractive_index=1.5, width_px=TILE_W,
+            height_px=TILE_H,
+        )  # fmt: skip
+        sensor = dict(scene_dict["sensor"])
+        sensor["film"] = dict(sensor["film"], rfilter={"type": "box"})
+        sensor["sampler"] = {"type": "independent", "sample_count": TILE_SPP}
+        scene_dict["sensor"] = sensor
+        scene = mi.load_dict(scene_dict)
+        images = np.stack(
+            [
+                np.asarray(mi.render(scene, seed=9000 + s), dtype=np.float64)[..., :3] @ LUMINANCE
+                for s in range(TILE_SEEDS)
+            ]
+        )
+        _row("scalar_rgb, plastic, mi.render + independent, path", images, mask, TILE_SPP)
+    finally:
+        mi.set_variant(vectorised)
 
 
 def noise_table(path: str) -> None:

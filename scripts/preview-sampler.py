@@ -52,9 +52,23 @@ def _row(label: str, images: np.ndarray, mask: np.ndarray, spp: int) -> None:
     print(f"  {label:44s} {means.mean():.6f} +- {se:.6f}   var x spp {pixel_var:.4e}", flush=True)
 
 
-def bias_table() -> None:
+def _film_loop(scene_dict: dict, first_seed: int) -> np.ndarray:
+    """The tile's luminance from Mitsuba's own film loop (box filter) with independent samples."""
     import mitsuba as mi
 
+    sensor = dict(scene_dict["sensor"])
+    sensor["film"] = dict(sensor["film"], rfilter={"type": "box"})
+    sensor["sampler"] = {"type": "independent", "sample_count": TILE_SPP}
+    scene = mi.load_dict(dict(scene_dict, sensor=sensor))
+    return np.stack(
+        [
+            np.asarray(mi.render(scene, seed=first_seed + 131 * s), dtype=np.float64)[..., :3] @ LUMINANCE
+            for s in range(TILE_SEEDS)
+        ]
+    )
+
+
+def bias_table() -> None:
     mask = _tile(0.7).aovs(16, 0)["coverage"] >= 0.5
     print(f"V-groove tile, {mask.sum()} object pixels, {TILE_SPP} spp, {TILE_SEEDS} seeds: mean luminance")
     for p_mirror in (0.7, 0.4):
@@ -70,18 +84,7 @@ def bias_table() -> None:
                     ]
                 )
                 _row(f"p = {p_mirror}, {sampler}, {name}", images, mask, TILE_SPP)
-        scene_dict = dict(renderer.scene_dict)
-        sensor = dict(scene_dict["sensor"])
-        sensor["film"] = dict(sensor["film"], rfilter={"type": "box"})
-        sensor["sampler"] = {"type": "independent", "sample_count": TILE_SPP}
-        scene_dict["sensor"] = sensor
-        scene = mi.load_dict(scene_dict)
-        images = np.stack(
-            [
-                np.asarray(mi.render(scene, seed=7 + 131 * s), dtype=np.float64)[..., :3] @ LUMINANCE
-                for s in range(TILE_SEEDS)
-            ]
-        )
+        images = _film_loop(renderer.scene_dict, 7)
         _row(f"p = {p_mirror}, mi.render + independent, path", images, mask, TILE_SPP)
     progressive.SAMPLER = "multijitter"
     scalar_reference(mask)
@@ -100,17 +103,7 @@ def scalar_reference(mask: np.ndarray) -> None:
             vertices, faces, body_albedo=(0.25, 0.45, 0.75), refractive_index=1.5, width_px=TILE_W,
             height_px=TILE_H,
         )  # fmt: skip
-        sensor = dict(scene_dict["sensor"])
-        sensor["film"] = dict(sensor["film"], rfilter={"type": "box"})
-        sensor["sampler"] = {"type": "independent", "sample_count": TILE_SPP}
-        scene_dict["sensor"] = sensor
-        scene = mi.load_dict(scene_dict)
-        images = np.stack(
-            [
-                np.asarray(mi.render(scene, seed=9000 + s), dtype=np.float64)[..., :3] @ LUMINANCE
-                for s in range(TILE_SEEDS)
-            ]
-        )
+        images = _film_loop(scene_dict, 9000)
         _row("scalar_rgb, plastic, mi.render + independent, path", images, mask, TILE_SPP)
     finally:
         mi.set_variant(vectorised)

@@ -367,16 +367,41 @@ def test_converge_measures_the_rate_and_does_not_overshoot(renderer):
     """Predicting at 1/sqrt(spp) where the noise falls faster overshoots: the stratified preview
     ended at 0.16 of its goal that way, with 8.6x the samples it takes now. With the rate
     measured from the rounds, both end within a quarter of the goal (measured 0.95 of it)."""
-    from render.convergence import noise_rate
-
     r = renderer()
     settings = ConvergenceSettings(target=0.005, first_spp=2, max_spp=1 << 16, time_cap_s=1e9)
     result = converge(r, r.mask, seed=3, settings=settings)
     assert result.converged
     assert 0.75 * settings.target < result.noise <= settings.target
-    assert noise_rate([(16, 0.1), (128, 0.1 * 8**-0.6)]) == pytest.approx(0.6)
-    assert noise_rate([(16, 0.1), (32, 0.01)]) == 0.5  # rounds too close: the safe side
-    assert noise_rate([(16, 0.1), (128, 0.0001)]) == 0.75
+
+
+def test_the_rate_is_each_pixels_own_not_the_reallocations():
+    """A round that moves samples to the noisy pixels lowers the noise figure more than each pixel's
+    own samples do: the figure's rate (0.61 here) would foretell too few samples for the next round.
+    The rate is read with the reallocation set apart: 1/2 for independent samples, whatever the
+    counts; a uniform round gives the figure's own rate, within [1/2, 3/4]."""
+    from render.convergence import round_rate
+
+    rng = np.random.default_rng(5)
+    sigma2 = np.where(np.arange(20_000) % 2 == 0, 100.0, 1.0)  # noisy and quiet pixels
+
+    def measured(have):  # one degree of freedom per pixel: (a - b)^2 / 4 with a, b of have samples
+        a = rng.normal(0.0, np.sqrt(sigma2 / have))
+        b = rng.normal(0.0, np.sqrt(sigma2 / have))
+        return (a - b) ** 2 / 4.0
+
+    before = np.full(sigma2.size, 16)
+    after = np.where(sigma2 > 10.0, 256, 16)  # 8.5 times the samples, all to the noisy pixels
+    figure = math.log(math.sqrt(np.mean(sigma2 / before) / np.mean(sigma2 / after))) / math.log(
+        after.mean() / before.mean()
+    )
+    assert figure > 0.6
+    rate = round_rate((before, measured(before)), (after, measured(after)))
+    assert rate == pytest.approx(0.5, abs=0.02)
+    uniform = 8 * before
+    falls = sigma2 * uniform.astype(float) ** -1.2 * 16**0.2  # a pass's noise ~ spp^-0.6
+    assert round_rate((before, sigma2 / 16), (uniform, falls)) == pytest.approx(0.6)
+    assert round_rate((before, sigma2 / 16), (2 * before, sigma2 / 1000)) == 0.5  # too close: safe side
+    assert round_rate((before, sigma2 / 16), (uniform, sigma2 * 1e-9)) == 0.75
 
 
 class Caustics:

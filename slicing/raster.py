@@ -460,9 +460,13 @@ def _max_winding(
     for r in range(rows):
         total = 0.0
         for c in range(cols):
-            total += acc[r, c]
-            acc[r, c] = 0.0
-            worst = max(worst, abs(total))
+            step = acc[r, c]
+            # The winding changes only where a segment added something: elsewhere (most of
+            # the window) there is nothing to clear and no new extreme.
+            if step != 0.0:
+                total += step
+                acc[r, c] = 0.0
+                worst = max(worst, abs(total))
         acc[r, cols] = 0.0
         acc[r, cols + 1] = 0.0
     return worst

@@ -9,26 +9,22 @@ one block of lanes per pixel, no atomics): the same scene, sample count and seed
 same image, byte for byte, whatever the thread count (tests/test_render.py checks it at one
 and at two threads).
 
-The samples come from Mitsuba's ``multijitter`` sampler (correlated multi-jittered sampling,
-Kensler 2013): within one pass the ``spp`` samples of a pixel (1, 4, 16 or 64) are stratified
-in each dimension the path asks for (the pixel's area, the light's area, the BSDF's lobe), each
-dimension shuffled on its own, the jitter within a stratum drawn from an independent PCG32
-stream. A larger power of four is traced as passes of 64 (the sampler's grid for 256 is not
-256). On the part_relief example's preview a sample's relative noise is 0.60 against 0.91 with
-independent samples (variance 2.3 times lower). Two passes with different seeds are
-independent randomisations, which is what the noise estimate of :mod:`render.convergence`
-needs (its tests check the halves' independence against a reference; note that the sampler
-needs ``set_samples_per_wavefront``, or every lane gets sample 0 and nothing is stratified).
+The samples come from :mod:`render.sampler` (padded (0, 2)-sequences, every dimension shuffled
+and scrambled on its own): within one pass the ``spp`` samples of a pixel (1, 4, 16 or 64) are
+stratified in each dimension the path asks for (the pixel's area, the light's area, the BSDF's
+lobe). Larger powers of four are traced as passes of 64, as they were for Mitsuba's
+``multijitter`` (whose grid for 256 is not 256). Two passes with different seeds are independent
+randomisations, which is what the noise estimate of :mod:`render.convergence` needs (its tests
+check the halves' independence against a reference; note that the sampler needs
+``set_samples_per_wavefront``, or every lane gets sample 0 and nothing is stratified).
 
-Not Mitsuba's ``ldsampler`` (scrambled (0, 2)-sequences), which this module used before: it
-XORs every dimension of a pixel with the same scramble, so that a path's choices at different
-bounces are correlated, and its images depend on sampling parameters that cannot change the
-answer. On a tile of V-grooves (tests/test_progressive_sampler.py) its mean moved by 1.25 %
-(60 standard errors) when the coat's mirror probability went from 0.7 to 0.4, where
-``multijitter``, Mitsuba's ``independent`` sampler, Mitsuba's own film loop and the scalar
-variant all agree within 0.03 % (docs/benchmarks.md, "Sixteenth run"). Mitsuba's
-``stratified`` sampler seeds consecutive dimensions' shuffles with consecutive integers and is
-biased too (-0.45 % there).
+Before it: Mitsuba's ``ldsampler``, whose shared scramble made the V-groove tile's image move by
+1.25 % (60 standard errors) with the coat's mirror probability, and then ``multijitter``
+(unbiased, but 27 % noisier than ``ldsampler`` on a flat tile rendered with its compact BRDF:
+37 samples for 2 % where :mod:`render.sampler` takes 23; on the CAD previews, which printapp's own
+path loop renders, the two are alike). Mitsuba's
+``stratified`` seeds consecutive dimensions' shuffles with consecutive integers and is biased too
+(-0.45 % there). docs/benchmarks.md, "commands", sixteenth and seventeenth runs.
 
 On Mitsuba's ``scalar_rgb`` variant (no vectorised Python loop) the film is rendered the old
 way: one independent sample per pixel of a ``k`` times finer film per pass, averaged in numpy.
@@ -40,13 +36,15 @@ from typing import Any
 
 import numpy as np
 
+from render import sampler as padded
+
 LANES_PER_CALL = 4_000_000
 """Most samples traced in one call (memory: about 100 bytes a lane in the LLVM backend)."""
 
 _FINE_FILM_SAMPLES = 8_000_000
 
-SAMPLER = "multijitter"
-"""Mitsuba's sampler for the camera's paths (module doc: why not ``ldsampler``)."""
+SAMPLER = padded.NAME
+"""The sampler for the camera's paths: :mod:`render.sampler` (module doc: why not Mitsuba's)."""
 
 MAX_PASS_SPP = 64
 """Samples of a pixel in one stratified pass: a power of four whose multi-jittered grid is exact."""
@@ -237,6 +235,8 @@ class SampleRenderer:
 
         w, h = self.width, self.height
         lanes = n_pix * spp
+        if SAMPLER == padded.NAME:
+            padded.register()
         sampler = mi.load_dict({"type": SAMPLER, "sample_count": int(spp)})
         # Without this the sampler numbers every lane's sample 0: no stratification.
         sampler.set_samples_per_wavefront(int(spp))

@@ -89,3 +89,96 @@ def test_a_pass_above_64_samples_is_deterministic_and_as_good_as_its_count():
     few = np.stack([renderer.render(64, 20 + s) @ LUMINANCE for s in range(6)])
     ratio = many.var(0, ddof=1).mean() / few.var(0, ddof=1).mean()
     assert 0.18 < ratio < 0.32  # four independent passes of 64: a quarter of the variance
+
+
+# --- render.sampler itself --------------------------------------------------------------------
+
+
+def _vectorised():
+    from render.mitsuba_adapter import choose_variant
+
+    if choose_variant().variant.startswith("scalar"):
+        pytest.skip("the sampler runs on Mitsuba's vectorised variants")
+    import mitsuba as mi
+
+    from render import sampler
+
+    return mi, sampler
+
+
+def test_the_one_pass_permutation_is_kenslers_for_powers_of_two():
+    """Each step is a bijection on the low bits, so Kensler's rejection loop is never taken: the
+    one-expression form is a permutation, and the same one Mitsuba's ``permute_kensler`` gives."""
+    mi, sampler = _vectorised()
+    import drjit as dr
+
+    for n in (1, 4, 16, 64, 256):
+        for seed in (0, 12345, 0xDEADBEEF):
+            index = dr.arange(mi.UInt32, n)
+            ours = np.array(sampler.permute_pow2(index, n - 1, mi.UInt32(seed)))
+            assert sorted(ours.tolist()) == list(range(n))
+            assert np.array_equal(ours, np.array(mi.permute_kensler(index, n, mi.UInt32(seed))))
+
+
+def test_a_symbolic_loop_draws_what_is_drawn_outside_it():
+    """Dr.Jit's symbolic loops rebuild the sampler from its default constructor (sample count 4)
+    and set its ``DRJIT_STRUCT`` fields: the draws inside a loop whose lanes stop at different
+    iterations must be the draws made one after another outside it. (With the sample count kept
+    as a plain attribute, the loop drew as if each pixel had four samples, and printapp's own path
+    loop came out 5 times noisier than independent sampling.)"""
+    mi, sampler = _vectorised()
+    import drjit as dr
+
+    lanes, spp = 64, 16
+
+    def fresh():
+        s = mi.load_dict({"type": sampler.register(), "sample_count": spp})
+        s.set_samples_per_wavefront(spp)
+        s.seed(7, lanes)
+        return s
+
+    s = fresh()
+    drawn = [np.array(s.next_2d().x) if k % 2 == 0 else np.array(s.next_1d()) for k in range(8)]
+
+    @dr.syntax
+    def loop(s):
+        import drjit as dr  # (dr.syntax rebuilds the function: the test's locals are not seen)
+        import mitsuba as mi
+
+        k, total, on = mi.UInt32(0), mi.Float(0.0), mi.Bool(True)
+        while on:
+            pair = s.next_2d(on)
+            single = s.next_1d(on)
+            total += dr.select(on, pair.x + single, 0.0)
+            k += 1
+            on &= (k < 4) & (single > 0.3)
+        return total, k
+
+    total, steps = (np.array(v) for v in loop(fresh()))
+    assert len(set(steps.tolist())) > 1  # lanes did stop at different iterations
+    want = np.array(
+        [sum(drawn[2 * i][j] + drawn[2 * i + 1][j] for i in range(steps[j])) for j in range(lanes)]
+    )
+    assert np.allclose(total, want, atol=1e-5)
+
+
+def test_a_pixels_samples_are_stratified_in_every_dimension_and_pixels_differ():
+    """Within a pixel the ``spp`` values of a 1-D dimension fall one in each of ``spp`` strata, and
+    of a 2-D dimension one in each elementary interval of a (0, 2)-net (checked on the 4 x 4 and
+    the 16 x 1 grids); two pixels, and two dimensions, are not the same points."""
+    mi, sampler = _vectorised()
+    spp = 16
+    s = mi.load_dict({"type": sampler.register(), "sample_count": spp})
+    s.set_samples_per_wavefront(spp)
+    s.seed(3, 2 * spp)
+    one = np.array(s.next_1d()).reshape(2, spp)
+    pair = np.array(s.next_2d()).T.reshape(2, spp, 2)
+    other = np.array(s.next_1d()).reshape(2, spp)
+    for pixel in range(2):
+        assert sorted(np.floor(one[pixel] * spp).astype(int)) == list(range(spp))
+        x, y = pair[pixel, :, 0], pair[pixel, :, 1]
+        assert len(set(zip(np.floor(x * 4), np.floor(y * 4), strict=True))) == spp
+        assert sorted(np.floor(x * spp).astype(int)) == list(range(spp))
+        assert sorted(np.floor(y * spp).astype(int)) == list(range(spp))
+    assert not np.allclose(np.sort(one[0]), np.sort(one[1]))
+    assert not np.allclose(np.sort(one[0]), np.sort(other[0]))

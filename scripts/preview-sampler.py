@@ -14,7 +14,8 @@
    the scalar one (Mitsuba's C++ ``plastic`` in place of printapp's coat).
 2. For each MODEL.stl (e.g. the ``model.stl`` of ``printapp design examples/part_relief.toml``),
    in its preview scene (1024 x 768): a sample's relative noise and the seconds a pass takes, at
-   passes of 4, 16 and 64, for ``multijitter``, ``ldsampler`` and ``independent``.
+   passes of 4, 16 and 64, for printapp's own (:mod:`render.sampler`), ``multijitter``, ``ldsampler``
+   and ``independent``.
 
 About a minute for step 1 and two a model.
 """
@@ -37,7 +38,8 @@ from render.mitsuba_adapter import choose_variant, resin_scene_dict  # noqa: E40
 from render.progressive import SampleRenderer  # noqa: E402
 from tests.scenes import coated_grooves_renderer, v_grooves  # noqa: E402
 
-SAMPLERS = ("multijitter", "ldsampler", "stratified", "independent")
+OURS = progressive.SAMPLER
+SAMPLERS = (OURS, "multijitter", "ldsampler", "stratified", "independent")
 TILE_W, TILE_H, TILE_SPP, TILE_SEEDS = 96, 72, 64, 128
 
 
@@ -86,7 +88,7 @@ def bias_table() -> None:
                 _row(f"p = {p_mirror}, {sampler}, {name}", images, mask, TILE_SPP)
         images = _film_loop(renderer.scene_dict, 7)
         _row(f"p = {p_mirror}, mi.render + independent, path", images, mask, TILE_SPP)
-    progressive.SAMPLER = "multijitter"
+    progressive.SAMPLER = OURS
     scalar_reference(mask)
 
 
@@ -115,7 +117,7 @@ def noise_table(path: str) -> None:
     mask = renderer.aovs(4, 0)["coverage"] >= 0.5
     print(f"{path}: {mask.sum()} object pixels; a sample's relative noise, seconds a pass")
     for spp, reps in ((4, 16), (16, 8), (64, 4)):
-        for sampler in ("multijitter", "ldsampler", "independent"):
+        for sampler in (OURS, "multijitter", "ldsampler", "independent"):
             progressive.SAMPLER = sampler
             renderer.render(spp, 0)  # (compiles)
             start = time.perf_counter()
@@ -126,7 +128,7 @@ def noise_table(path: str) -> None:
             print(
                 f"  passes of {spp:2d}, {sampler:12s} mean {obj.mean():.5f} noise {noise:.3f} {seconds:.2f} s"
             )
-    progressive.SAMPLER = "multijitter"
+    progressive.SAMPLER = OURS
 
 
 if __name__ == "__main__":

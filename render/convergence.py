@@ -56,7 +56,10 @@ cap), a machine a good deal faster or slower may take a different number of samp
 **A light-traced part** (``converge(caustics=...)``, :mod:`render.caustics`): paths the camera's
 samples leave out, estimated apart in each half and added before the noise is measured.
 
-The module is one piece: the noise figure, the allocation and the loop that uses both.
+The module is one piece (about 670 lines): the noise figure, the allocation and its rate, and
+the loop that uses them share one estimator (the halves' ``(a - b)^2 / 4``) and one model (a
+pixel's variance ``v N^-2a``). Split apart, the loop's predictions and the figure it checks
+them against could drift from each other, so they stay where one reading shows both.
 """
 
 from __future__ import annotations

@@ -125,9 +125,6 @@ def register() -> str:
         def schedule_state(self) -> None:
             dr.schedule(self.key, self.index, self.dim, self.low)
 
-        def traverse(self, callback: Any) -> None:  # no differentiable parameters
-            pass
-
     mi.register_sampler(NAME, lambda props: PaddedSampler(props))
     _registered.add(variant)
     return NAME

@@ -449,3 +449,40 @@ def test_a_light_traced_part_is_added_to_each_half_and_kept_within_its_share():
     # and the image delivered is the whole image: its error is the noise it reports
     error = math.sqrt(np.mean((luminance(one.raw) - clean)[camera.mask] ** 2)) / clean[camera.mask].mean()
     assert error == pytest.approx(one.noise, rel=0.15)
+
+
+def test_a_small_object_converges_without_piling_up_light_paths():
+    """A thumbnail (a 6 x 6 pixel object, as ``tests/test_hostile.py`` renders at 32 x 24): its
+    2-pixel border, which is sampled but not in the noise figure, is half the sampled pixels. The
+    prediction is scaled to what the object's own pixels measure, so the camera takes the samples
+    the goal needs; before, the smoothed variance leaked onto the quiet border, the camera's
+    prediction said the goal was met while the figure stayed above it, and the light-traced part
+    was doubled round after round (a design hung in its light tracer)."""
+    h, w = 24, 32
+    mask = np.zeros((h, w), dtype=bool)
+    mask[9:15, 13:19] = True
+
+    def camera(spp, seed, pixels):
+        rng = np.random.default_rng(seed)
+        mean = np.where(mask, 0.3, 0.1).ravel()
+        sd = np.where(mask, 1.2, 0.0).ravel()
+        if pixels is not None:
+            mean, sd = mean[pixels], sd[pixels]
+        out = mean + sd / math.sqrt(spp) * rng.standard_normal(mean.shape)
+        return np.repeat(out.reshape(mean.shape if pixels is not None else (h, w))[..., None], 3, axis=-1)
+
+    calls = []
+
+    def faint(n_paths, seed):  # a light-traced part far below the goal
+        calls.append(n_paths)
+        rng = np.random.default_rng(seed)
+        return np.repeat(
+            (np.where(mask, 1e-3, 0.0) + 1e-3 / math.sqrt(n_paths) * rng.standard_normal((h, w)))[..., None],
+            3,
+            -1,
+        )
+
+    settings = ConvergenceSettings(target=0.02, first_spp=1, max_spp=1 << 16, time_cap_s=1e9)
+    result = converge(camera, mask, seed=3, settings=settings, caustics=faint)
+    assert result.converged and result.noise <= 0.02
+    assert max(calls) <= 64 * calls[0]

@@ -386,12 +386,13 @@ def _converge(
     render, caustics = renderer.render, None
     if fixed_spp is None:
         # A coated relief's lamp caustics are light-traced, the rest path-traced (render.caustics):
-        # on part_relief the same noise for two thirds of the time.
-        from render.caustics import caustic_split
+        # on part_relief the same noise for two thirds of the time; and the camera's vertex is
+        # done apart (render.coated_path): half the samples on the CAD parts.
+        from render.caustics import preview_estimators
 
-        split = caustic_split(renderer, mask, r.seed)
-        if split is not None:
-            render, caustics = split
+        estimators = preview_estimators(renderer, mask, r.seed)
+        if estimators is not None:
+            render, caustics = estimators
     result = converge(
         render,
         mask,

@@ -161,7 +161,8 @@ def _render() -> None:
 
 def _caustic_split(vertices: np.ndarray, faces: np.ndarray) -> None:
     """The kernels of a coated relief's preview split into camera and light paths (render.caustics)."""
-    from render.caustics import CausticFreePath, caustic_image, coat_of, lamps_of
+    from render.caustics import caustic_image, coat_of, lamps_of
+    from render.coated_path import CoatedPath
     from render.mitsuba_adapter import resin_scene_dict
     from render.progressive import SampleRenderer
 
@@ -170,9 +171,10 @@ def _caustic_split(vertices: np.ndarray, faces: np.ndarray) -> None:
     if renderer.scalar:
         return
     coat = coat_of(scene_dict)
-    integrator = CausticFreePath(coat)
+    integrator = CoatedPath(coat)
     renderer.render(1, 0, integrator=integrator)  # the first round: every pixel
     renderer.render(1, 0, np.arange(8), integrator=integrator)  # later rounds: listed pixels
+    renderer.render(1, 0, integrator=CoatedPath(coat, caustics="camera"))  # where the split is declined
     lamps = lamps_of(renderer.scene, scene_dict)
     frame_args = {"centre_mm": frame.centre, "radius_mm": frame.radius_mm, "width_px": 16, "height_px": 12}
     _, guide = caustic_image(renderer.scene, coat, lamps, 1000, 0, learn=True, **frame_args)

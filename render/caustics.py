@@ -14,10 +14,10 @@ the coat's mirror reflection (weight: Fresnel), and where the reflected ray meet
 a connection to the camera (Veach 1997, ch. 10, light tracing; Mitsuba's ``ptracer`` does the
 same for all paths). So the image is split by path, with nothing counted twice or left out:
 
-* :class:`CausticFreePath` is Mitsuba's ``path`` estimator (next-event estimation, the power
-  heuristic) with the camera's first two vertices done here, which drops exactly the paths
-  whose first vertex took the body's lobe, whose second took the coat's mirror, and whose
-  next hit is a lamp (the environment's reflections stay: they are smooth and cheap);
+* :class:`render.coated_path.CoatedPath` is Mitsuba's ``path`` estimator (next-event
+  estimation, the power heuristic), its camera vertex done apart, which here drops exactly the
+  paths whose first vertex took the body's lobe, whose second took the coat's mirror, and
+  whose next hit is a lamp (the environment's reflections stay: they are smooth and cheap);
 * :func:`caustic_image` estimates exactly those paths by light tracing: an unbiased image,
   its own pixel by pixel, summed in a fixed order (``np.bincount`` over the light paths in
   their order), so that the same seed gives the same bytes.
@@ -37,6 +37,8 @@ from typing import Any
 
 import numpy as np
 
+from render.coated_path import CoatedPath, _fresnel
+
 LIGHT_PATHS_PER_CALL = 2_000_000
 """Light paths traced in one Dr.Jit call (a few hundred bytes a lane)."""
 PILOT_PATHS = 500_000
@@ -49,14 +51,6 @@ quarter, on ``brushed_cylinder`` 0.03 % and 3 % (where the split's cost, its lig
 by-hand path loop some 10 % slower than Mitsuba's, is not paid back)."""
 
 
-def _power(a: Any, b: Any) -> Any:
-    """The power heuristic's weight of a sample of density ``a`` against another of density ``b``."""
-    import drjit as dr
-
-    a2, b2 = a * a, b * b
-    return dr.select(a2 + b2 > 0, a2 / (a2 + b2), 0.0)
-
-
 @dataclass(frozen=True)
 class Lamp:
     """An area light the caustics are traced from: its rectangle (a Mitsuba shape), its radiance
@@ -65,127 +59,6 @@ class Lamp:
     shape: Any
     radiance: tuple[float, float, float]
     centre: tuple[float, float, float]
-
-
-def _fresnel(cos_i: Any, eta: float) -> Any:
-    from render.mitsuba_shared import fresnel_dr
-
-    return fresnel_dr(cos_i, eta)
-
-
-class CausticFreePath:
-    """``path`` (``max_depth`` segments) less the lamps' ``E D S L`` paths (module doc).
-
-    It has the ``sample`` signature of a Mitsuba integrator, as
-    :class:`render.progressive.SampleRenderer` calls it. ``coat`` is the scene's coated resin
-    (:func:`render.mitsuba_bsdfs.coated_resin_bsdf`, loaded); the lamps must be black-faced
-    shapes; every other surface is ignored past its emission. With ``caustics_only`` it is the
-    other way round: the camera's own estimate of the paths it leaves out, and nothing else
-    (what :func:`caustic_image` is checked against).
-    """
-
-    def __init__(self, coat: Any, max_depth: int = 8, *, caustics_only: bool = False) -> None:
-        if max_depth < 3:
-            raise ValueError(f"max_depth: expected at least 3, got {max_depth}")
-        self.caustics_only = bool(caustics_only)
-        self.coat = coat
-        self.p_mirror = float(coat.p_mirror)
-        self.eta = float(coat.eta)
-        self.max_depth = int(max_depth)
-        self.rr_depth = 5
-
-    def sample(self, scene: Any, sampler: Any, ray: Any, medium: Any, active: Any) -> tuple[Any, Any, list]:
-        """One sample per lane: (radiance, valid, no AOVs), as ``mi.SamplingIntegrator.sample``."""
-        return _caustic_free_sample(self, scene, sampler, mi_ray(ray), active), _bool(active), []
-
-
-def mi_ray(ray: Any) -> Any:
-    import mitsuba as mi
-
-    return mi.Ray3f(ray)
-
-
-def _bool(active: Any) -> Any:
-    import mitsuba as mi
-
-    return mi.Bool(active)
-
-
-def _caustic_free_sample(integrator: CausticFreePath, scene: Any, sampler: Any, ray: Any, active: Any) -> Any:
-    global _TRACE
-    if _TRACE is None:
-        import drjit as dr
-
-        # dr.syntax turns the ``while`` into Dr.Jit's symbolic loop (one kernel, lanes leave as
-        # their paths end); it reads the function's source, so it is done once.
-        _TRACE = dr.syntax(_trace)
-    return _TRACE(integrator, scene, sampler, ray, active)
-
-
-_TRACE: Any = None
-
-
-def _trace(integrator: CausticFreePath, scene: Any, sampler: Any, ray: Any, active: Any) -> Any:
-    """The path loop: Mitsuba's ``path`` (next-event estimation and the power heuristic, Russian
-    roulette past ``rr_depth``) on the coated resin, less the lamps' ``E D S L`` paths. The loop
-    carries the ray and a small interaction, as ``path`` does, not the whole surface interaction
-    (which made a first version 10-30 % slower a sample)."""
-    import drjit as dr
-    import mitsuba as mi
-
-    ctx = mi.BSDFContext()
-    coat, coat_ptr = integrator.coat, mi.BSDFPtr(integrator.coat)
-    p_mirror, eta = integrator.p_mirror, integrator.eta
-    only = integrator.caustics_only
-    ray = mi.Ray3f(ray)
-    result = mi.Spectrum(0.0)
-    beta = mi.Spectrum(1.0)
-    depth = mi.UInt32(0)  # vertices scattered so far
-    prev = dr.zeros(mi.Interaction3f)
-    prev_pdf = mi.Float(1.0)  # the body's density of the ray's direction
-    prev_mirror = mi.Bool(True)  # (the camera's ray: what it meets is seen whole)
-    body_first = mi.Bool(False)
-    go = mi.Bool(active)
-    while go:
-        # (The camera's rays are coherent, as ``path`` tells Embree; nothing here needs the UV or
-        # its derivatives, which the default intersection computes.)
-        si = scene.ray_intersect(ray, mi.RayFlags.Minimal | mi.RayFlags.ShadingFrame, depth == 0, go)
-        emitted = si.emitter(scene).eval(si, go)
-        em_pdf = scene.pdf_emitter_direction(prev, mi.DirectionSample3f(scene, si, prev), go & ~prev_mirror)
-        weight_found = dr.select(prev_mirror, 1.0, _power(prev_pdf, em_pdf))
-        lamp = si.is_valid() & (si.shape.emitter() != None)  # noqa: E711 (Dr.Jit's pointer test)
-        caustic = (depth == 2) & body_first & prev_mirror & lamp  # E D S L: the light tracer's
-        if only:
-            result += dr.select(go & caustic, beta * emitted, 0.0)
-        else:
-            result += dr.select(go & ~caustic, beta * emitted * weight_found, 0.0)
-        on = go & si.is_valid() & (si.bsdf() == coat_ptr) & (mi.Frame3f.cos_theta(si.wi) > 0)
-        on &= depth + 2 <= integrator.max_depth
-        ds, em_weight = scene.sample_emitter_direction(si, sampler.next_2d(on), True, on)
-        f_nee, pdf_nee = coat.eval_pdf(ctx, si, si.to_local(ds.d), on)
-        if not only:
-            nee = em_weight * f_nee * dr.select(ds.delta, 1.0, _power(ds.pdf, pdf_nee))
-            result += dr.select(on, beta * nee, 0.0)
-        mirror = sampler.next_1d(on) < p_mirror
-        wo_body = mi.warp.square_to_cosine_hemisphere(sampler.next_2d(on))
-        f_body, pdf_body = coat.eval_pdf(ctx, si, wo_body, on)
-        beta *= dr.select(
-            mirror,
-            mi.Spectrum(_fresnel(mi.Frame3f.cos_theta(si.wi), eta) / p_mirror),
-            dr.select(pdf_body > 0, f_body / dr.maximum(pdf_body, 1e-12), 0.0),
-        )
-        ray = si.spawn_ray(si.to_world(dr.select(mirror, mi.reflect(si.wi), wo_body)))
-        body_first = dr.select(depth == 0, ~mirror, body_first)
-        prev, prev_pdf, prev_mirror = mi.Interaction3f(si), pdf_body, mirror
-        depth += 1
-        go = on & (dr.max(beta) > 0)
-        # Russian roulette past rr_depth, as Mitsuba's path does.
-        q = dr.minimum(dr.max(beta), 0.95)
-        roulette = go & (depth >= integrator.rr_depth)
-        survive = sampler.next_1d(roulette) < q
-        beta = dr.select(roulette, dr.select(survive, beta / dr.maximum(q, 1e-12), 0.0), beta)
-        go &= ~roulette | survive
-    return result
 
 
 def lamps_of(scene: Any, scene_dict: dict[str, Any]) -> list[Lamp]:
@@ -433,7 +306,7 @@ def caustic_split(
     lamps = lamps_of(renderer.scene, scene_dict)
     if not lamps:
         return None
-    integrator = CausticFreePath(coat, int(spec.get("max_depth", 8)))
+    integrator = CoatedPath(coat, int(spec.get("max_depth", 8)))
     relief = next(s for s in renderer.scene.shapes() if not s.is_emitter())
     box = relief.bbox()
     centre = np.array([float(box.center()[i]) for i in range(3)])
@@ -457,3 +330,31 @@ def caustic_split(
         return image.reshape(height, width, 3)
 
     return render, caustics
+
+
+def preview_estimators(
+    renderer: Any, mask: np.ndarray, seed: int
+) -> tuple[Callable[..., np.ndarray], Callable[[int, int], np.ndarray] | None] | None:
+    """``(render, caustics)`` for a preview's :func:`render.convergence.converge`.
+
+    The split of :func:`caustic_split` where it applies and pays. Where the relief is the
+    coated resin but the split is declined (its caustics too faint to pay for the light
+    paths), the camera's estimator of :mod:`render.coated_path` with the caustics kept in it,
+    and no light tracing (``caustics`` None). None elsewhere: the scene's own integrator
+    (Mitsuba's ``path``, ``volpath`` for a medium) serves.
+    """
+    split = caustic_split(renderer, mask, seed)
+    if split is not None:
+        return split
+    if renderer.scalar:
+        return None
+    coat = coat_of(renderer.scene_dict)
+    spec = renderer.scene_dict.get("integrator", {})
+    if coat is None or spec.get("type") != "path":
+        return None
+    integrator = CoatedPath(coat, int(spec.get("max_depth", 8)), caustics="camera")
+
+    def render(spp: int, seed: int, pixels: np.ndarray | None = None) -> np.ndarray:
+        return renderer.render(spp, seed, pixels, integrator=integrator)
+
+    return render, None

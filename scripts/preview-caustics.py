@@ -9,7 +9,7 @@ examples/part_relief.toml`` writes; its preview scene is built as ``printapp des
 
 1. the share of the object's light and of the camera's variance (``path``, 2 x 16 samples a
    pixel) that the lamps' ``E D S L`` paths carry, from the camera's own estimate of them
-   (``CausticFreePath(caustics_only=True)``), and the variance left without them;
+   (``CoatedPath(caustics="only")``), and the variance left without them;
 2. the two parts at equal samples (2 x 16 a pixel, uniform): means (they must agree with
    ``path``'s), noise and seconds, and the light tracer's variance and seconds, with or
    without its learned guide;
@@ -28,7 +28,8 @@ import time
 import numpy as np
 from preview_scene import HEIGHT, WIDTH, preview_scene  # (scripts/, beside this file)
 
-from render.caustics import CausticFreePath, caustic_image, caustic_split, coat_of, lamps_of
+from render.caustics import caustic_image, caustic_split, coat_of, lamps_of
+from render.coated_path import CoatedPath
 from render.convergence import LUMINANCE, ConvergenceSettings, converge
 from render.progressive import SampleRenderer
 
@@ -50,8 +51,8 @@ def main(paths: list[str]) -> None:
         print(f"{path}: {pixels.size} object pixels")
         parts = {
             "path": renderer.scene.integrator(),
-            "caustics, camera's estimate": CausticFreePath(coat, caustics_only=True),
-            "caustic-free": CausticFreePath(coat),
+            "caustics, camera's estimate": CoatedPath(coat, caustics="only"),
+            "caustic-free": CoatedPath(coat),
         }
         stats = {}
         for name, integrator in parts.items():

@@ -6,7 +6,7 @@
    each sampler and for the coat's mirror probability at 0.7 and at 0.4 (a sampling parameter:
    the image's expectation does not depend on it): the object's mean luminance with its
    standard error, for Mitsuba's ``path`` and for the camera's estimate of the lamps' caustics
-   alone (``CausticFreePath(caustics_only=True)``), and a pixel's variance times its samples.
+   alone (``CoatedPath(caustics="only")``), and a pixel's variance times its samples.
    Every row averages over the same pixels (the mask is taken once, before the sampler changes:
    a mask taken with each sampler moves the means by more than the bias looked for). A
    reference that shares no code with ``render.progressive``: Mitsuba's own film loop
@@ -32,7 +32,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # the tests' sc
 from preview_scene import HEIGHT, WIDTH, preview_scene  # noqa: E402  (scripts/, beside this file)
 
 import render.progressive as progressive  # noqa: E402
-from render.caustics import CausticFreePath, coat_of  # noqa: E402
+from render.caustics import coat_of  # noqa: E402
+from render.coated_path import CoatedPath  # noqa: E402
 from render.convergence import LUMINANCE  # noqa: E402
 from render.mitsuba_adapter import choose_variant, resin_scene_dict  # noqa: E402
 from render.progressive import SampleRenderer  # noqa: E402
@@ -75,7 +76,7 @@ def bias_table() -> None:
     print(f"V-groove tile, {mask.sum()} object pixels, {TILE_SPP} spp, {TILE_SEEDS} seeds: mean luminance")
     for p_mirror in (0.7, 0.4):
         renderer = _tile(p_mirror)
-        caustics = CausticFreePath(coat_of(renderer.scene_dict), caustics_only=True)
+        caustics = CoatedPath(coat_of(renderer.scene_dict), caustics="only")
         for sampler in SAMPLERS:
             progressive.SAMPLER = sampler
             for name, integrator in (("path", None), ("caustics (camera)", caustics)):

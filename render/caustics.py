@@ -37,7 +37,7 @@ from typing import Any
 
 import numpy as np
 
-from render.coated_path import CoatedPath, _fresnel
+from render.coated_path import CoatedPath, _fresnel, camera_estimator, coat_of
 
 LIGHT_PATHS_PER_CALL = 2_000_000
 """Light paths traced in one Dr.Jit call (a few hundred bytes a lane)."""
@@ -266,20 +266,6 @@ def caustic_image(
     return image, guide
 
 
-def coat_of(scene_dict: dict[str, Any]) -> Any:
-    """The relief's coated resin (a loaded BSDF) in a preview scene's description, or None when
-    the relief wears anything else (a BRDF representation, a medium, a glowing body)."""
-    relief = scene_dict.get("relief")
-    if isinstance(relief, dict) and relief.get("type") == "instance":
-        relief = scene_dict.get("relief_group", {}).get("relief")
-    if relief is None or isinstance(relief, dict) or not hasattr(relief, "bsdf"):
-        return None
-    if relief.interior_medium() is not None or relief.emitter() is not None:
-        return None
-    bsdf = relief.bsdf()
-    return bsdf if bsdf is not None and "CoatedResin" in bsdf.to_string() else None
-
-
 def caustic_split(
     renderer: Any, mask: np.ndarray, seed: int
 ) -> tuple[Callable[..., np.ndarray], Callable[[int, int], np.ndarray]] | None:
@@ -346,13 +332,9 @@ def preview_estimators(
     split = caustic_split(renderer, mask, seed)
     if split is not None:
         return split
-    if renderer.scalar:
+    integrator = camera_estimator(renderer)
+    if integrator is None:
         return None
-    coat = coat_of(renderer.scene_dict)
-    spec = renderer.scene_dict.get("integrator", {})
-    if coat is None or spec.get("type") != "path":
-        return None
-    integrator = CoatedPath(coat, int(spec.get("max_depth", 8)), caustics="camera")
 
     def render(spp: int, seed: int, pixels: np.ndarray | None = None) -> np.ndarray:
         return renderer.render(spp, seed, pixels, integrator=integrator)

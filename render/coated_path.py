@@ -109,14 +109,41 @@ class CoatedPath:
         return _TRACE(self, scene, sampler, mi.Ray3f(ray), active), mi.Bool(active), []
 
 
+def coat_of(scene_dict: dict[str, Any]) -> Any:
+    """The relief's coated resin (a loaded BSDF) in a preview scene's description, or None when
+    the relief wears anything else (a BRDF representation, a medium, a glowing body)."""
+    relief = scene_dict.get("relief")
+    if isinstance(relief, dict) and relief.get("type") == "instance":
+        relief = scene_dict.get("relief_group", {}).get("relief")
+    if relief is None or isinstance(relief, dict) or not hasattr(relief, "bsdf"):
+        return None
+    if relief.interior_medium() is not None or relief.emitter() is not None:
+        return None
+    bsdf = relief.bsdf()
+    return bsdf if bsdf is not None and "CoatedResin" in str(bsdf) else None
+
+
+def camera_estimator(renderer: Any) -> CoatedPath | None:
+    """The whole image's estimator (caustics kept) for a :class:`render.progressive.SampleRenderer`
+    of a preview scene whose relief is the coated resin; None where the scene's own integrator
+    must serve (Mitsuba's scalar variant, another material, a medium)."""
+    if renderer.scalar:
+        return None
+    coat = coat_of(renderer.scene_dict)
+    spec = renderer.scene_dict.get("integrator", {})
+    if coat is None or spec.get("type") != "path":
+        return None
+    return CoatedPath(coat, int(spec.get("max_depth", 8)), caustics="camera")
+
+
 _TRACE: Any = None
 
 
 def _trace(integrator: CoatedPath, scene: Any, sampler: Any, ray: Any, active: Any) -> Any:
     """The camera's vertex (module doc), then the path loop: Mitsuba's ``path`` on the coated
-    resin, with or without the lamps' ``E D S L`` paths. The loop carries the ray and a small interaction,
-    as ``path`` does, not the whole surface interaction (which made a first version 10-30 %
-    slower a sample)."""
+    resin, with or without the lamps' ``E D S L`` paths. The loop carries the ray and a small
+    interaction, as ``path`` does, not the whole surface interaction (which made a first
+    version 10-30 % slower a sample)."""
     import drjit as dr
     import mitsuba as mi
 
@@ -124,45 +151,16 @@ def _trace(integrator: CoatedPath, scene: Any, sampler: Any, ray: Any, active: A
     coat, coat_ptr = integrator.coat, mi.BSDFPtr(integrator.coat)
     p_mirror, p_first, eta = integrator.p_mirror, integrator.p_first, integrator.eta
     only, leave_out = integrator.caustics == "only", integrator.caustics == "light"
-    lamps = [e for e in scene.emitters() if not e.is_environment()]
+    body_share = (1.0 - p_first) / (1.0 - p_mirror)  # (as at the camera's vertex)
 
-    # --- The camera's vertex.
-    si = scene.ray_intersect(mi.Ray3f(ray), mi.RayFlags.Minimal | mi.RayFlags.ShadingFrame, True, active)
-    result = mi.Spectrum(0.0) if only else dr.select(active, si.emitter(scene).eval(si, active), 0.0)
-    on = active & si.is_valid() & (si.bsdf() == coat_ptr) & (mi.Frame3f.cos_theta(si.wi) > 0)
-    # The body's density here is the coat's, with the body drawn 1 - p_first of the time.
-    body_share = (1.0 - p_first) / (1.0 - p_mirror)
-    for each in lamps:
-        ds, lamp_weight = each.sample_direction(si, sampler.next_2d(on), on)
-        seen = on & (ds.pdf > 0) & (dr.max(lamp_weight) > 0)
-        seen &= ~scene.ray_test(si.spawn_ray_to(ds.p), seen)
-        f_lamp, pdf_lamp = coat.eval_pdf(ctx, si, si.to_local(ds.d), seen)
-        if not only:
-            result += dr.select(seen, lamp_weight * f_lamp * _power(ds.pdf, body_share * pdf_lamp), 0.0)
-    fresnel = _fresnel(mi.Frame3f.cos_theta(si.wi), eta)
-    mirror = sampler.next_1d(on) < p_first
-    # The mirror's direct light on every sample: here where the path goes on by the body (the
-    # branch by the mirror finds it at its next vertex, below).
-    split = on & ~mirror
-    seen_by_mirror = scene.ray_intersect(
-        si.spawn_ray(si.to_world(mi.reflect(si.wi))), mi.RayFlags.Minimal, False, split
+    # --- The camera's vertex (apart, so that none of its values is carried by the loop).
+    result, ray, beta, prev, prev_pdf, took_mirror, go = _camera_vertex(
+        integrator, scene, sampler, ray, active
     )
-    if not only:
-        result += dr.select(split, fresnel * seen_by_mirror.emitter(scene).eval(seen_by_mirror, split), 0.0)
-    wo_body = mi.warp.square_to_cosine_hemisphere(sampler.next_2d(on))
-    f_body, pdf_body = coat.eval_pdf(ctx, si, wo_body, on)
-    pdf_body *= body_share
-    beta = dr.select(
-        mirror,
-        mi.Spectrum(fresnel / p_first),
-        dr.select(pdf_body > 0, f_body / dr.maximum(pdf_body, 1e-12), 0.0),
-    )
-    ray = si.spawn_ray(si.to_world(dr.select(mirror, mi.reflect(si.wi), wo_body)))
-    prev, prev_pdf, prev_mirror = mi.Interaction3f(si), pdf_body, mi.Bool(mirror)
-    body_first = ~mirror
-    chain = mi.Bool(mirror)  # every vertex so far went on by the mirror: the camera sees this one
+    prev_mirror = mi.Bool(took_mirror)
+    body_first = ~took_mirror
+    chain = mi.Bool(took_mirror)  # every vertex so far went on by the mirror: the camera sees this one
     depth = mi.UInt32(1)  # vertices scattered so far
-    go = on & (dr.max(beta) > 0)
 
     # --- The rest of the path: Mitsuba's path.
     while go:
@@ -229,3 +227,48 @@ def _trace(integrator: CoatedPath, scene: Any, sampler: Any, ray: Any, active: A
         beta = dr.select(roulette, dr.select(survive, beta / dr.maximum(q, 1e-12), 0.0), beta)
         go &= ~roulette | survive
     return result
+
+
+def _camera_vertex(integrator: CoatedPath, scene: Any, sampler: Any, ray: Any, active: Any) -> tuple:
+    """The camera's vertex (module doc): what it adds to the image, and where the path goes on
+    (the ray, its weight, the vertex, the body's density of the ray, whether it took the mirror,
+    which lanes go on)."""
+    import drjit as dr
+    import mitsuba as mi
+
+    ctx = mi.BSDFContext()
+    coat, coat_ptr = integrator.coat, mi.BSDFPtr(integrator.coat)
+    p_mirror, p_first, eta = integrator.p_mirror, integrator.p_first, integrator.eta
+    only = integrator.caustics == "only"
+    si = scene.ray_intersect(mi.Ray3f(ray), mi.RayFlags.Minimal | mi.RayFlags.ShadingFrame, True, active)
+    result = mi.Spectrum(0.0) if only else dr.select(active, si.emitter(scene).eval(si, active), 0.0)
+    on = active & si.is_valid() & (si.bsdf() == coat_ptr) & (mi.Frame3f.cos_theta(si.wi) > 0)
+    # The body's density here is the coat's, with the body drawn 1 - p_first of the time.
+    body_share = (1.0 - p_first) / (1.0 - p_mirror)
+    for lamp in (e for e in scene.emitters() if not e.is_environment()):
+        ds, lamp_weight = lamp.sample_direction(si, sampler.next_2d(on), on)
+        seen = on & (ds.pdf > 0) & (dr.max(lamp_weight) > 0)
+        seen &= ~scene.ray_test(si.spawn_ray_to(ds.p), seen)
+        f_lamp, pdf_lamp = coat.eval_pdf(ctx, si, si.to_local(ds.d), seen)
+        if not only:
+            result += dr.select(seen, lamp_weight * f_lamp * _power(ds.pdf, body_share * pdf_lamp), 0.0)
+    fresnel = _fresnel(mi.Frame3f.cos_theta(si.wi), eta)
+    mirror = sampler.next_1d(on) < p_first
+    # The mirror's direct light on every sample: here where the path goes on by the body (the
+    # branch by the mirror finds it at its next vertex).
+    split = on & ~mirror
+    seen_by_mirror = scene.ray_intersect(
+        si.spawn_ray(si.to_world(mi.reflect(si.wi))), mi.RayFlags.Minimal, False, split
+    )
+    if not only:
+        result += dr.select(split, fresnel * seen_by_mirror.emitter(scene).eval(seen_by_mirror, split), 0.0)
+    wo_body = mi.warp.square_to_cosine_hemisphere(sampler.next_2d(on))
+    f_body, pdf_body = coat.eval_pdf(ctx, si, wo_body, on)
+    pdf_body *= body_share
+    beta = dr.select(
+        mirror,
+        mi.Spectrum(fresnel / p_first),
+        dr.select(pdf_body > 0, f_body / dr.maximum(pdf_body, 1e-12), 0.0),
+    )
+    ray = si.spawn_ray(si.to_world(dr.select(mirror, mi.reflect(si.wi), wo_body)))
+    return result, ray, beta, mi.Interaction3f(si), pdf_body, mirror, on & (dr.max(beta) > 0)

@@ -541,6 +541,8 @@ def render_resin_mesh(
     With ``emission`` the body glows with that per-vertex radiance instead (see
     :func:`resin_scene_dict`).
 
+    The coated resin's geometry is traced as the preview traces it (:mod:`render.coated_path`).
+
     Samples are stratified per pixel and averaged in numpy (:mod:`render.progressive`): the
     image is the same, byte for byte, for the same arguments and ``seed``. ``spp`` that is not
     a power of four is rendered in passes of powers of four (:func:`render.progressive.passes_of`),
@@ -558,6 +560,7 @@ def render_resin_mesh(
     (height_px, width_px, 3) float32 array of linear RGB radiance; with ``coverage``, a
     (height_px, width_px) boolean mask of the pixels whose centre sees the mesh instead.
     """
+    from render.coated_path import camera_estimator
     from render.progressive import SampleRenderer, passes_of
 
     scene_dict, _ = resin_scene_dict(
@@ -580,9 +583,12 @@ def render_resin_mesh(
     renderer = SampleRenderer(scene_dict, int(width_px), int(height_px))
     if coverage:
         return renderer.aovs(4, seed)["coverage"] >= 0.5
+    integrator = camera_estimator(renderer)  # (None: the scene's own integrator)
     total = np.zeros((int(height_px), int(width_px), 3), dtype=np.float64)
     for p, count in enumerate(passes_of(int(spp))):
-        total += count * renderer.render(count, (int(seed) * 0x9E3779B1 + p) & 0xFFFFFFFF)
+        total += count * renderer.render(
+            count, (int(seed) * 0x9E3779B1 + p) & 0xFFFFFFFF, integrator=integrator
+        )
     return (total / int(spp)).astype(np.float32)
 
 

@@ -41,16 +41,11 @@ from __future__ import annotations
 
 from typing import Any
 
+from render.lamps_path import LampsPath, light_found, russian_roulette
+from render.mitsuba_shared import power_heuristic as _power
+
 FIRST_MIRROR_PROBABILITY = 0.3
 """How often a path goes on by the coat's mirror at the camera's vertex (module doc)."""
-
-
-def _power(a: Any, b: Any) -> Any:
-    """The power heuristic's weight of a sample of density ``a`` against another of density ``b``."""
-    import drjit as dr
-
-    a2, b2 = a * a, b * b
-    return dr.select(a2 + b2 > 0, a2 / (a2 + b2), 0.0)
 
 
 def _fresnel(cos_i: Any, eta: float) -> Any:
@@ -109,9 +104,9 @@ class CoatedPath:
         return _TRACE(self, scene, sampler, mi.Ray3f(ray), active), mi.Bool(active), []
 
 
-def coat_of(scene_dict: dict[str, Any]) -> Any:
-    """The relief's coated resin (a loaded BSDF) in a preview scene's description, or None when
-    the relief wears anything else (a BRDF representation, a medium, a glowing body)."""
+def _plain_relief(scene_dict: dict[str, Any]) -> Any:
+    """The relief (a loaded shape) of a preview scene's description where it is a surface alone:
+    None for a medium, a glowing body, or a relief not loaded yet."""
     relief = scene_dict.get("relief")
     if isinstance(relief, dict) and relief.get("type") == "instance":
         relief = scene_dict.get("relief_group", {}).get("relief")
@@ -119,20 +114,30 @@ def coat_of(scene_dict: dict[str, Any]) -> Any:
         return None
     if relief.interior_medium() is not None or relief.emitter() is not None:
         return None
-    bsdf = relief.bsdf()
+    return relief
+
+
+def coat_of(scene_dict: dict[str, Any]) -> Any:
+    """The relief's coated resin (a loaded BSDF) in a preview scene's description, or None when
+    the relief wears anything else (a BRDF representation, a medium, a glowing body)."""
+    relief = _plain_relief(scene_dict)
+    bsdf = None if relief is None else relief.bsdf()
     return bsdf if bsdf is not None and "CoatedResin" in str(bsdf) else None
 
 
-def camera_estimator(renderer: Any) -> CoatedPath | None:
+def camera_estimator(renderer: Any) -> Any:
     """The whole image's estimator (caustics kept) for a :class:`render.progressive.SampleRenderer`
-    of a preview scene whose relief is the coated resin; None where the scene's own integrator
-    must serve (Mitsuba's scalar variant, another material, a medium)."""
+    of a preview scene: :class:`CoatedPath` where the relief is the coated resin,
+    :class:`render.lamps_path.LampsPath` where it wears a BRDF representation; None where the
+    scene's own integrator must serve (Mitsuba's scalar variant, a medium, a glowing body)."""
     if renderer.scalar:
         return None
-    coat = coat_of(renderer.scene_dict)
     spec = renderer.scene_dict.get("integrator", {})
-    if coat is None or spec.get("type") != "path":
+    if spec.get("type") != "path" or _plain_relief(renderer.scene_dict) is None:
         return None
+    coat = coat_of(renderer.scene_dict)
+    if coat is None:
+        return LampsPath(int(spec.get("max_depth", 8)))
     return CoatedPath(coat, int(spec.get("max_depth", 8)), caustics="camera")
 
 
@@ -165,18 +170,7 @@ def _trace(integrator: CoatedPath, scene: Any, sampler: Any, ray: Any, active: A
     # --- The rest of the path: Mitsuba's path.
     while go:
         si = scene.ray_intersect(ray, mi.RayFlags.Minimal | mi.RayFlags.ShadingFrame, False, go)
-        emitter = si.emitter(scene)
-        emitted = emitter.eval(si, go)
-        found = mi.DirectionSample3f(scene, si, prev)
-        # After the camera's vertex a lamp was sampled with probability 1 and the environment
-        # never; past it, one emitter by its sampling weight.
-        first = depth == 1
-        em_pdf = dr.select(
-            first,
-            dr.select(si.is_valid(), emitter.pdf_direction(prev, found, go & first & ~prev_mirror), 0.0),
-            scene.pdf_emitter_direction(prev, found, go & ~first & ~prev_mirror),
-        )
-        weight_found = dr.select(prev_mirror, 1.0, _power(prev_pdf, em_pdf))
+        emitted, weight_found = light_found(scene, si, prev, prev_pdf, prev_mirror, depth == 1, go)
         # Seen through mirrors alone, this light was added at the last vertex with weight F, not F / p.
         weight_found = dr.select(chain, p_first, weight_found)
         on_lamp = si.is_valid() & (si.shape.emitter() != None)  # noqa: E711 (Dr.Jit's pointer test)
@@ -219,13 +213,7 @@ def _trace(integrator: CoatedPath, scene: Any, sampler: Any, ray: Any, active: A
         prev, prev_pdf, prev_mirror = mi.Interaction3f(si), pdf_body, mirror
         chain &= mirror
         depth += 1
-        go = on & (dr.max(beta) > 0)
-        # Russian roulette past rr_depth, as Mitsuba's path does.
-        q = dr.minimum(dr.max(beta), 0.95)
-        roulette = go & (depth >= integrator.rr_depth)
-        survive = sampler.next_1d(roulette) < q
-        beta = dr.select(roulette, dr.select(survive, beta / dr.maximum(q, 1e-12), 0.0), beta)
-        go &= ~roulette | survive
+        beta, go = russian_roulette(sampler, beta, on & (dr.max(beta) > 0), depth, integrator.rr_depth)
     return result
 
 

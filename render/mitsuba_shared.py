@@ -28,6 +28,15 @@ def fresnel_dr(cos_i: Any, eta: Any) -> Any:
     return dr.select(sin2_t >= 1.0, 1.0, 0.5 * (r_perp * r_perp + r_par * r_par))
 
 
+def power_heuristic(a: Any, b: Any) -> Any:
+    """The power heuristic's weight (Veach 1997, eq. 9.13, beta = 2) of a sample drawn with density
+    ``a`` against another strategy of density ``b``, in Dr.Jit."""
+    import drjit as dr
+
+    a2, b2 = a * a, b * b
+    return dr.select(a2 + b2 > 0, a2 / (a2 + b2), 0.0)
+
+
 def lobe_or_body_sample(wo: Any, pick_lobe: Any, lobe_flag: Any, pdf: Any) -> Any:
     """A ``BSDFSample3f`` for direction ``wo`` drawn from a BSDF's first component (a lobe of type
     ``lobe_flag``) where ``pick_lobe``, else from its second, the diffuse body; density ``pdf``."""

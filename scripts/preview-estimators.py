@@ -41,14 +41,8 @@ from preview_scene import HEIGHT, WIDTH, preview_scene  # (scripts/, beside this
 
 from render.convergence import LUMINANCE, _dilate, _lum, relative_noise
 from render.mitsuba_shared import fresnel_dr
+from render.mitsuba_shared import power_heuristic as _power
 from render.progressive import SampleRenderer, passes_of
-
-
-def _power(a: Any, b: Any) -> Any:
-    import drjit as dr
-
-    a2, b2 = a * a, b * b
-    return dr.select(a2 + b2 > 0, a2 / (a2 + b2), 0.0)
 
 
 class CameraVertexByHand:

@@ -41,7 +41,6 @@ from __future__ import annotations
 
 from typing import Any
 
-from render.lamps_path import LampsPath, light_found, russian_roulette
 from render.mitsuba_shared import power_heuristic as _power
 
 FIRST_MIRROR_PROBABILITY = 0.3
@@ -52,6 +51,37 @@ def _fresnel(cos_i: Any, eta: float) -> Any:
     from render.mitsuba_shared import fresnel_dr
 
     return fresnel_dr(cos_i, eta)
+
+
+def _light_found(
+    scene: Any, si: Any, prev: Any, prev_pdf: Any, prev_delta: Any, first: Any, go: Any
+) -> tuple:
+    """What a hit emits, and its multiple-importance weight against the light samples taken at the
+    last vertex ``prev``: at the camera's (``first``) every lamp was sampled once and the sky
+    never; past it, ``path``'s one emitter by its sampling weight. After a delta lobe, weight 1."""
+    import drjit as dr
+    import mitsuba as mi
+
+    emitter = si.emitter(scene)
+    emitted = emitter.eval(si, go)
+    found = mi.DirectionSample3f(scene, si, prev)
+    em_pdf = dr.select(
+        first,
+        dr.select(si.is_valid(), emitter.pdf_direction(prev, found, go & first & ~prev_delta), 0.0),
+        scene.pdf_emitter_direction(prev, found, go & ~first & ~prev_delta),
+    )
+    return emitted, dr.select(prev_delta, 1.0, _power(prev_pdf, em_pdf))
+
+
+def _russian_roulette(sampler: Any, beta: Any, go: Any, depth: Any, rr_depth: int) -> tuple:
+    """``path``'s Russian roulette past ``rr_depth``: the surviving lanes' weights and which go on."""
+    import drjit as dr
+
+    q = dr.minimum(dr.max(beta), 0.95)
+    roulette = go & (depth >= rr_depth)
+    survive = sampler.next_1d(roulette) < q
+    beta = dr.select(roulette, dr.select(survive, beta / dr.maximum(q, 1e-12), 0.0), beta)
+    return beta, go & (~roulette | survive)
 
 
 class CoatedPath:
@@ -125,19 +155,16 @@ def coat_of(scene_dict: dict[str, Any]) -> Any:
     return bsdf if bsdf is not None and "CoatedResin" in str(bsdf) else None
 
 
-def camera_estimator(renderer: Any) -> Any:
+def camera_estimator(renderer: Any) -> CoatedPath | None:
     """The whole image's estimator (caustics kept) for a :class:`render.progressive.SampleRenderer`
-    of a preview scene: :class:`CoatedPath` where the relief is the coated resin,
-    :class:`render.lamps_path.LampsPath` where it wears a BRDF representation; None where the
-    scene's own integrator must serve (Mitsuba's scalar variant, a medium, a glowing body)."""
+    of a preview scene whose relief is the coated resin; None where the scene's own integrator
+    must serve (Mitsuba's scalar variant, a BRDF representation, a medium, a glowing body)."""
     if renderer.scalar:
         return None
-    spec = renderer.scene_dict.get("integrator", {})
-    if spec.get("type") != "path" or _plain_relief(renderer.scene_dict) is None:
-        return None
     coat = coat_of(renderer.scene_dict)
-    if coat is None:
-        return LampsPath(int(spec.get("max_depth", 8)))
+    spec = renderer.scene_dict.get("integrator", {})
+    if coat is None or spec.get("type") != "path":
+        return None
     return CoatedPath(coat, int(spec.get("max_depth", 8)), caustics="camera")
 
 
@@ -170,7 +197,7 @@ def _trace(integrator: CoatedPath, scene: Any, sampler: Any, ray: Any, active: A
     # --- The rest of the path: Mitsuba's path.
     while go:
         si = scene.ray_intersect(ray, mi.RayFlags.Minimal | mi.RayFlags.ShadingFrame, False, go)
-        emitted, weight_found = light_found(scene, si, prev, prev_pdf, prev_mirror, depth == 1, go)
+        emitted, weight_found = _light_found(scene, si, prev, prev_pdf, prev_mirror, depth == 1, go)
         # Seen through mirrors alone, this light was added at the last vertex with weight F, not F / p.
         weight_found = dr.select(chain, p_first, weight_found)
         on_lamp = si.is_valid() & (si.shape.emitter() != None)  # noqa: E711 (Dr.Jit's pointer test)
@@ -213,7 +240,7 @@ def _trace(integrator: CoatedPath, scene: Any, sampler: Any, ray: Any, active: A
         prev, prev_pdf, prev_mirror = mi.Interaction3f(si), pdf_body, mirror
         chain &= mirror
         depth += 1
-        beta, go = russian_roulette(sampler, beta, on & (dr.max(beta) > 0), depth, integrator.rr_depth)
+        beta, go = _russian_roulette(sampler, beta, on & (dr.max(beta) > 0), depth, integrator.rr_depth)
     return result
 
 

@@ -164,3 +164,29 @@ def test_the_split_is_taken_on_grooves_and_declined_on_a_flat_tile():
     # where it is declined, the preview still does the camera's vertex apart, with no light paths
     render, caustics = preview_estimators(flat, flat_mask, 7)
     assert caustics is None and render(1, 0, None).shape == (HEIGHT, WIDTH, 3)
+
+
+def test_only_the_coated_resin_gets_the_camera_vertex_done_apart():
+    """A relief wearing a BRDF representation, or a medium, keeps the scene's own integrator."""
+    import trimesh
+
+    from render.coated_path import CoatedPath, camera_estimator
+    from render.mitsuba_adapter import resin_scene_dict
+    from render.mitsuba_bsdfs import CompactSurface
+    from render.progressive import SampleRenderer
+    from render.translucency import MediumRGB
+
+    _scene()  # (the variant, or a skip)
+    sphere = trimesh.creation.icosphere(subdivisions=2, radius=5.0)
+
+    def estimator(**kwargs):
+        scene_dict, _ = resin_scene_dict(
+            np.asarray(sphere.vertices), np.asarray(sphere.faces), body_albedo=(0.5, 0.5, 0.5),
+            refractive_index=1.5, width_px=16, height_px=12, **kwargs,
+        )  # fmt: skip
+        return camera_estimator(SampleRenderer(scene_dict, 16, 12))
+
+    assert isinstance(estimator(), CoatedPath)
+    assert estimator(surface=CompactSurface("ggx", 0.2, 0.2, 0.0, 1.5, (0.5, 0.5, 0.5))) is None
+    medium = MediumRGB(sigma_s_per_mm=(1.0, 1.0, 1.0), sigma_a_per_mm=(0.01, 0.01, 0.01), g=0.0)
+    assert estimator(medium=medium) is None

@@ -171,7 +171,8 @@ def bench_scale(repeats: int) -> StageResult:
         f"representations at {_SPP} spp with two seeds; error and noise as in `bench render` "
         "(relative to the mean, over the tile's pixels); pixels per feature counts the finest "
         "octave; time to 2 % = the fixed cost (scene, BVH, plugin) plus the cost per sample, both "
-        "from renders at 64 and 16 spp, times the samples 2 % noise needs (on the power law through the noise at 16 and 64 spp)",
+        "from renders at 64 and 16 spp, times the samples 2 % noise needs (on the power law "
+        "through the noise at 16 and 64 spp)",
         *(
             f"{size:g} mm ({by[(size, 'geometry')]['triangles']:,} triangles): model "
             f"{ratios[size]:.1f}x faster to 2 % noise than geometry, "

@@ -29,7 +29,7 @@ import time
 import numpy as np
 from preview_scene import BODY, HEIGHT, WIDTH, preview_scene  # (scripts/, beside this file)
 
-from render.convergence import _denoise_halves, _dilate, _lum, denoised_error, relative_noise
+from render.convergence import _denoise_half, _dilate, _lum, denoised_error, relative_noise
 from render.mitsuba_adapter import mesh_object
 from render.progressive import SampleRenderer, passes_of
 
@@ -104,7 +104,8 @@ def main(path: str, spp: int) -> None:
         times = []
         for _ in range(3):
             start = time.perf_counter()
-            den_a, den_b = _denoise_halves(denoise, (guides["albedo"], guides["normal"]), a, b, mask)
+            den_a = _denoise_half(denoise, (guides["albedo"], guides["normal"]), a, mask)
+            den_b = _denoise_half(denoise, (guides["albedo"], guides["normal"]), b, mask)
             times.append(time.perf_counter() - start)
         error = denoised_error(den_a, den_b, a, b, mask)
         label = f"{quality}{', clean guides' if clean else ''}"

@@ -45,6 +45,9 @@ class Relief:
     """A flat patch of the relief, at the design's pitch and amplitude scale, for appearance."""
     undisplaced: trimesh.Trimesh | None = None
     """For mesh bases: the refined mesh before displacement (same faces as ``mesh``)."""
+    base: trimesh.Trimesh | None = None
+    """For mesh bases: the closed mesh that was refined, the same surface as ``undisplaced``
+    (the refinement splits triangles in their planes) in a few of its triangles."""
     softened_vertices: int = 0
     """For mesh bases: vertices whose relief was lowered so that no triangle folds."""
     frame: FrameSummary | None = None
@@ -127,6 +130,7 @@ def build_relief(design: Design, base: trimesh.Trimesh | None = None) -> Relief:
         mesh=mesh,
         patch=HeightField((values - lo) * scale, step, step),
         undisplaced=refined,
+        base=base,
         softened_vertices=softened,
         frame=frame,
     )

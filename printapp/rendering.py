@@ -147,7 +147,11 @@ def base_shape(design: Design, relief: Relief) -> trimesh.Trimesh | None:
     """The smooth shape under the relief, for the BRDF representations (None with booleans).
 
     A tile's base is the slab at the relief's mean height (so that it stands where the
-    relief's average surface does); a mesh's is the refined mesh before displacement.
+    relief's average surface does); a mesh's is the closed mesh the relief was built on, not
+    its refinement: the same surface (:func:`printapp.mesh.refine_to_edge_length` splits
+    triangles in their planes) in a few thousand triangles instead of a million, so a light
+    sweep's lamp moves no longer rebuild a million-triangle BVH (0.3 s a frame on
+    ``brushed_part``) and the scene loads at once.
     """
     if design.combine:
         return None
@@ -158,7 +162,7 @@ def base_shape(design: Design, relief: Relief) -> trimesh.Trimesh | None:
             np.full((2, 2), level), patch.width_mm, patch.depth_mm, patch.origin_x_mm, patch.origin_y_mm
         )
         return slab_from_heightfield(flat, design.base.thickness_mm)
-    return relief.undisplaced
+    return relief.base if relief.base is not None else relief.undisplaced
 
 
 def render_preview(

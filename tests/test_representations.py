@@ -409,3 +409,42 @@ def test_the_coated_resin_samples_the_density_it_reports_for_its_body():
     sample, pdf = BSDFAdapter("printapp_coated", plugin, wi=[0.48, 0.0, 0.877], ctx=body_only)
     test = ChiSquareTest(domain=SphericalDomain(), sample_func=sample, pdf_func=pdf, sample_dim=3, seed=3)
     assert test.run()
+
+
+def test_a_mesh_designs_brdf_preview_stands_on_its_base_not_on_its_refinement():
+    # The representations render the smooth shape under the relief. For a mesh design that is
+    # the closed mesh the relief was refined from: the same surface (the refinement splits
+    # triangles in their planes) with the same shading frames (UV = (x, y) is affine on each
+    # plane), so the same image, without the refinement's triangles, whose BVH every lamp move
+    # of a light sweep rebuilt.
+    from dataclasses import replace
+    from pathlib import Path
+
+    from printapp.design import design_from_dict
+    from printapp.relief import build_relief
+    from printapp.rendering import base_shape, predict_for_design, render_preview
+
+    root = Path(__file__).resolve().parents[1]
+    design = design_from_dict(
+        {
+            "base": {"shape": "mesh", "path": str(root / "examples" / "cylinder.stl"), "scale": 0.5},
+            "texture": {"kind": "fbm", "feature_size_mm": 1.0, "octaves": 2},
+            "relief": {"amplitude_um": 80},
+            "brdf": {"rays": 2000},
+            "render": {"width_px": 96, "height_px": 72, "mode": "model"},
+        }
+    )
+    relief = build_relief(design)
+    base, refined = base_shape(design, relief), relief.undisplaced
+    assert len(base.faces) * 5 < len(refined.faces)
+    assert base.is_watertight and base.volume == pytest.approx(refined.volume, rel=1e-9)
+    assert base.area == pytest.approx(refined.area, rel=1e-9)
+    predicted = predict_for_design(design, relief.patch)
+    images = [
+        render_preview(design, r, r.mesh, predicted, r.patch, fixed_spp=16)
+        for r in (relief, replace(relief, base=None))
+    ]
+    assert [p.mode for p in images] == ["model", "model"]
+    on_base, on_refined = (p.image for p in images)
+    assert on_refined.mean() > 0.02
+    assert np.abs(on_base - on_refined).mean() < 1e-4 * on_refined.mean()  # 5e-7 here

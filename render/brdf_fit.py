@@ -12,7 +12,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from render.brdf_model import DISTRIBUTIONS, MicrofacetBRDF, _body, _body_shape, _lobe, model_bins
+from render.brdf_model import DISTRIBUTIONS, MicrofacetBRDF, _body, _body_shape, lobe_row_means, model_bins
 from render.fresnel import diffuse_fresnel_reflectance, fresnel_dielectric
 
 
@@ -239,7 +239,6 @@ def fit_microfacet(
     target = f_specular[kk, it, ip]
     sigma = np.sqrt(stderr_specular[kk, it, ip] ** 2 + (0.02 * target) ** 2)
     sigma = np.maximum(sigma, 1e-3 * max(float(target.max()), 1e-300))
-    wi_rows = wis[kk][:, None, :]
     lo = [math.log(1e-3), math.log(1e-3), -math.pi, 0.0]
     hi = [math.log(3.0), math.log(3.0), 2 * math.pi, 1.0]
 
@@ -285,9 +284,7 @@ def fit_microfacet(
             bin_omega = omega[it, ip]
 
             def residuals(p: np.ndarray) -> np.ndarray:
-                broad = _lobe(distribution, math.exp(p[0]), math.exp(p[1]), p[2], ior, wi_rows, dirs).mean(
-                    axis=-1
-                )
+                broad = lobe_row_means(distribution, math.exp(p[0]), math.exp(p[1]), p[2], ior, wis, kk, dirs)
                 if not spike:
                     return (broad - target) / sigma
                 w = p[3]
@@ -309,11 +306,11 @@ def fit_microfacet(
             f_model = model_bins(model, wis, theta_edges, phi_edges)
             if not spike:
                 # The lobe's own bins from the sub-samples the fit used (the numbers it minimised).
-                broad = _lobe(
-                    distribution, model.alpha_u, model.alpha_v, model.azimuth_rad, ior, wi_rows, dirs
+                broad = lobe_row_means(
+                    distribution, model.alpha_u, model.alpha_v, model.azimuth_rad, ior, wis, kk, dirs
                 )
                 centre_cos = np.cos(0.5 * (theta_edges[it] + theta_edges[it + 1]))
-                f_model[kk, it, ip] = broad.mean(axis=-1) + _body(model, wis[kk, 2], centre_cos)
+                f_model[kk, it, ip] = broad + _body(model, wis[kk, 2], centre_cos)
             err, used = relative_error(f_model, f_table, omega, stderr)
             pooled_err, _ = _relative_error_merged(f_model, f_table, omega, stderr, mirror)
             return FitResult(model, pooled_err if spike else err, used), pooled_err

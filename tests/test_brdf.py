@@ -454,6 +454,29 @@ def test_sampled_lobe_kernel_equals_the_plain_numpy_version(distribution, au, av
     assert plain.sum() > 0
 
 
+@pytest.mark.parametrize("distribution", ["ggx", "beckmann"])
+@pytest.mark.parametrize(("au", "av", "azimuth"), [(0.01, 0.02, 0.0), (0.3, 0.1, 0.7), (2.9, 1.3, 3.0)])
+def test_the_fits_lobe_kernel_equals_the_numpy_lobe(distribution, au, av, azimuth):
+    """The analytic fit's numba kernel (bin means of one lobe) against the numpy model it evaluates."""
+    from render.brdf_model import _lobe, lobe_row_means
+
+    rng = np.random.default_rng(11)
+    wis = rng.normal(size=(5, 3))
+    wis[:, 2] = np.abs(wis[:, 2])
+    wis[0] = [0.0, 0.0, 1.0]
+    wis /= np.linalg.norm(wis, axis=1, keepdims=True)
+    dirs = rng.normal(size=(400, 16, 3))
+    dirs[:, :, 2] = np.abs(dirs[:, :, 2])
+    dirs[-10:, :8, 2] *= -1.0  # half below the horizon: no light there
+    dirs[-1, :, 2] = -np.abs(dirs[-1, :, 2])
+    dirs /= np.linalg.norm(dirs, axis=-1, keepdims=True)
+    rows = rng.integers(0, len(wis), len(dirs))
+    ours = lobe_row_means(distribution, au, av, azimuth, 1.5, wis, rows, dirs)
+    numpy_lobe = _lobe(distribution, au, av, azimuth, 1.5, wis[rows][:, None, :], dirs).mean(axis=-1)
+    np.testing.assert_allclose(ours, numpy_lobe, rtol=1e-13, atol=1e-300)  # (subnormals: exp underflows)
+    assert ours[-1] == 0.0 and np.count_nonzero(ours) > 100
+
+
 @pytest.mark.slow
 def test_analytic_fit_added_later_is_the_one_fitted_at_once():
     # A design run fits the analytic model on its background thread, after the rest: the same

@@ -285,3 +285,59 @@ def test_enclosed_volume_is_the_closed_forms_and_trimesh_s():
     assert volume == pytest.approx(sphere.volume, rel=1e-9)
     assert volume == pytest.approx(4.0 / 3.0 * np.pi * 4.0**3, rel=2e-3)  # the inscribed polyhedron
     assert enclosed_volume_mm3(sphere.vertices, sphere.faces[:, ::-1]) == pytest.approx(-volume)
+
+
+def _meshes_to_count():
+    box = trimesh.creation.box(extents=[2.0, 3.0, 5.0])
+    sphere = trimesh.creation.icosphere(subdivisions=3)
+    torus = trimesh.creation.torus(major_radius=3.0, minor_radius=1.0, major_sections=24, minor_sections=12)
+    flipped = sphere.faces.copy()
+    flipped[7] = flipped[7, ::-1]
+    second = box.copy()
+    second.apply_translation([2.0, 3.0, 0.0])  # shares one edge with the first box: four faces on it
+    touching = trimesh.util.concatenate([box, second])
+    touching.merge_vertices()
+    spare = np.vstack([box.vertices, [[9.0, 9.0, 9.0]]])  # a vertex no face uses
+    degenerate = np.vstack([box.faces, [[0, 0, 1], [1, 0, 0]]])
+    both = trimesh.util.concatenate([box, sphere])
+    return {
+        "box": (box.vertices, box.faces),
+        "sphere": (sphere.vertices, sphere.faces),
+        "torus": (torus.vertices, torus.faces),
+        "open": (sphere.vertices, sphere.faces[1:]),
+        "one face flipped": (sphere.vertices, flipped),
+        "every face flipped": (sphere.vertices, sphere.faces[:, ::-1]),
+        "two parts": (both.vertices, both.faces),
+        "edge on four faces": (touching.vertices, touching.faces),
+        "unused vertex": (spare, box.faces),
+        "degenerate faces": (box.vertices, degenerate),
+        "one triangle": (box.vertices[:3], np.array([[0, 1, 2]])),
+    }
+
+
+@pytest.mark.parametrize("name", list(_meshes_to_count()))
+def test_edge_topology_counts_as_trimesh_does(name):
+    from printapp.mesh import edge_topology
+
+    vertices, faces = _meshes_to_count()[name]
+    ours = edge_topology(faces, len(vertices))
+    theirs = trimesh.Trimesh(vertices=vertices, faces=faces, process=False)
+    assert ours.watertight == theirs.is_watertight
+    assert ours.winding_consistent == theirs.is_winding_consistent
+    assert ours.euler_number == theirs.euler_number
+    np.testing.assert_array_equal(ours.referenced, theirs.referenced_vertices)
+
+
+def test_edge_topology_of_the_usual_cases():
+    from printapp.mesh import edge_topology
+
+    meshes = _meshes_to_count()
+    torus = edge_topology(meshes["torus"][1], len(meshes["torus"][0]))
+    assert torus.watertight and torus.winding_consistent and torus.euler_number == 0  # genus 1
+    sphere = edge_topology(meshes["sphere"][1], len(meshes["sphere"][0]))
+    assert sphere.watertight and sphere.winding_consistent and sphere.euler_number == 2
+    assert not edge_topology(meshes["open"][1], len(meshes["open"][0])).watertight
+    flipped = edge_topology(meshes["one face flipped"][1], len(meshes["one face flipped"][0]))
+    assert flipped.watertight and not flipped.winding_consistent
+    with pytest.raises(ValueError, match="faces"):
+        edge_topology(np.array([[0, 1, 5]]), 3)

@@ -87,20 +87,25 @@ def threemf_bytes(vertices: np.ndarray, faces: np.ndarray, name: str = "printapp
 
     Zip entries carry a fixed timestamp and no random ids, so output is deterministic.
     """
+    from printapp.decimal_text import triangle_elements
+
     verts = np.asarray(vertices, dtype=np.float32)
-    tris = np.asarray(faces, dtype=np.int64)
     # One %-format over the whole array is several times faster than a per-element f-string.
     vertex_xml = ('<vertex x="%.9g" y="%.9g" z="%.9g"/>' * len(verts)) % tuple(verts.ravel().tolist())
-    triangle_xml = ('<triangle v1="%d" v2="%d" v3="%d"/>' * len(tris)) % tuple(tris.ravel().tolist())
     safe_name = name.replace("&", "&amp;").replace('"', "&quot;").replace("<", "&lt;")
-    model = (
-        '<?xml version="1.0" encoding="UTF-8"?>\n'
-        '<model unit="millimeter" xml:lang="en-US" '
-        'xmlns="http://schemas.microsoft.com/3dmanufacturing/core/2015/02">'
-        '<metadata name="Application">printapp</metadata>'
-        f'<resources><object id="1" type="model" name="{safe_name}"><mesh>'
-        f"<vertices>{vertex_xml}</vertices><triangles>{triangle_xml}</triangles>"
-        '</mesh></object></resources><build><item objectid="1"/></build></model>'
+    model = b"".join(
+        [
+            (
+                '<?xml version="1.0" encoding="UTF-8"?>\n'
+                '<model unit="millimeter" xml:lang="en-US" '
+                'xmlns="http://schemas.microsoft.com/3dmanufacturing/core/2015/02">'
+                '<metadata name="Application">printapp</metadata>'
+                f'<resources><object id="1" type="model" name="{safe_name}"><mesh>'
+                f"<vertices>{vertex_xml}</vertices><triangles>"
+            ).encode(),
+            triangle_elements(faces),
+            b'</triangles></mesh></object></resources><build><item objectid="1"/></build></model>',
+        ]
     )
     content_types = (
         '<?xml version="1.0" encoding="UTF-8"?>\n'
@@ -120,7 +125,7 @@ def threemf_bytes(vertices: np.ndarray, faces: np.ndarray, name: str = "printapp
         [
             ("[Content_Types].xml", content_types.encode("utf-8")),
             ("_rels/.rels", rels.encode("utf-8")),
-            ("3D/3dmodel.model", model.encode("utf-8")),
+            ("3D/3dmodel.model", model),
         ]
     )
 

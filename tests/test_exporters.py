@@ -37,6 +37,19 @@ def test_3mf_round_trip_and_determinism(sphere):
     assert back.volume == pytest.approx(sphere.volume, rel=1e-6)
 
 
+def test_triangle_elements_are_pythons_decimal_formatting():
+    from printapp.decimal_text import triangle_elements
+
+    rng = np.random.default_rng(4)
+    faces = rng.integers(0, 10 ** rng.integers(1, 13, size=(500, 3)), size=(500, 3))
+    faces[:3] = [[0, 9, 10], [99, 100, 101], [2**40, 7, 0]]  # every number of digits's edges
+    plain = ('<triangle v1="%d" v2="%d" v3="%d"/>' * len(faces)) % tuple(faces.ravel().tolist())
+    assert triangle_elements(faces) == plain.encode("ascii")
+    assert triangle_elements(np.zeros((0, 3), dtype=np.int64)) == b""
+    with pytest.raises(ValueError, match="faces"):
+        triangle_elements(np.array([[0, -1, 2]]))
+
+
 def test_output_folder_moves_only_on_commit_and_creates_nothing_before(tmp_path):
     dest = tmp_path / "deep" / "out"
     with pytest.raises(RuntimeError), OutputFolder(dest) as out:

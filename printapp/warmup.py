@@ -78,18 +78,24 @@ def _tile() -> None:
     for network in ("cellular", "ridged"):  # the photo fits' marble
         veined = {"kind": "veined", "feature_size_mm": 1.0, "vein_network": network, "vein_scale_mm": 2.0}
         _design({**small, "texture": veined}, brdf=False)
+    from render.brdf_model import lobe_row_means
+
+    # The analytic fit's lobe (whether the small tile's fit reached it or not).
+    up = np.array([[0.0, 0.0, 1.0]])
+    lobe_row_means("ggx", 0.3, 0.2, 0.0, 1.5, up, np.zeros(1, dtype=np.int64), up[None])
 
 
 def _mesh() -> None:
     import trimesh
 
     from printapp.design import design_from_dict
-    from printapp.exporters import stl_bytes
+    from printapp.exporters import stl_bytes, threemf_bytes
     from printapp.relief import build_relief
     from printapp.stl import load_closed_stl
     from slicing import find_printer, slice_mesh, write_sl1
 
     box = trimesh.creation.box((4.0, 4.0, 4.0))
+    threemf_bytes(box.vertices, box.faces)
     with tempfile.TemporaryDirectory() as folder:
         path = Path(folder) / "box.stl"
         path.write_bytes(stl_bytes(box.vertices, box.faces))

@@ -157,9 +157,12 @@ _BOX = {"body_albedo": (0.8, 0.5, 0.2), "refractive_index": 1.5, "width_px": 16,
 def _render() -> None:
     import trimesh
 
+    from render.convergence import allocate_samples
     from render.mitsuba_adapter import choose_variant, render_resin_mesh
 
     choose_variant()
+    # Progressive rendering's allocation (a preview's later rounds).
+    allocate_samples(np.ones(4), np.full(4, 2), np.ones(4, dtype=bool), 0.1, 0.5, step=2, cap=8, lanes=9)
     box = trimesh.creation.box((2.0, 2.0, 1.0))
     render_resin_mesh(np.asarray(box.vertices), np.asarray(box.faces), spp=1, **_BOX)
     _caustic_split(np.asarray(box.vertices), np.asarray(box.faces))

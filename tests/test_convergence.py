@@ -353,6 +353,28 @@ def test_allocation_is_the_lagrange_optimum_within_its_caps():
     assert 0.99 * 7 * 8 * 500 < np.sum(far - have) <= 7 * 8 * 500 and far.max() > 8 * 8
 
 
+@pytest.mark.parametrize("seed", range(6))
+def test_allocation_gives_the_plain_numpy_versions_counts(seed):
+    """The kernels of the bisection's trials change its speed, never a count."""
+    from printapp.bench.reference.allocate_plain import allocate_plain
+    from render.convergence import allocate_samples
+
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(1, 20_000))
+    step = int(2 ** rng.integers(0, 5))
+    unit = rng.lognormal(0.0, 2.0, n)
+    have = step * rng.integers(1, 9, n)
+    measured = rng.random(n) < 0.9
+    rate = float(rng.uniform(0.5, 0.75))
+    goal = float(np.mean(unit / have)) / float(rng.uniform(1.5, 40.0))
+    cap = step * int(rng.integers(8, 300))
+    for lanes in (None, int(rng.integers(1, 4 * n * step))):  # the lanes bind in the second
+        args = (unit, have, measured, goal, rate)
+        ours = allocate_samples(*args, step=step, cap=cap, lanes=lanes)
+        np.testing.assert_array_equal(ours, allocate_plain(*args, step=step, cap=cap, lanes=lanes))
+        assert np.all(ours % step == 0) and np.all(ours >= have)
+
+
 class Stratified(Synthetic):
     """As :class:`Synthetic`, but within a pass the noise falls as spp^-3/4 (a stratified sampler
     on a pixel's edges), independent from pass to pass."""

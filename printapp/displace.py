@@ -6,7 +6,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from printapp.errors import DesignError
-from printapp.mesh import SolidCheck
+from printapp.solid import SolidCheck
 from printapp.texture import FrameSummary
 
 _FLAGS = {
@@ -66,8 +66,9 @@ def displace_mesh_file(
     """
     from printapp.design import design_from_dict
     from printapp.exporters import check_mesh_output, write_mesh
-    from printapp.mesh import check_solid, folded_triangles, load_closed_mesh, winding_verdict
+    from printapp.mesh import folded_triangles, load_closed_mesh, winding_verdict
     from printapp.relief import build_relief
+    from printapp.solid import check_solid
     from slicing import slice_mesh
 
     check_mesh_output(out)

@@ -27,12 +27,7 @@ from printapp.cure import describe_constants
 from printapp.design import Design, TileBase
 from printapp.design_io import resolved_toml
 from printapp.exporters import png_bytes, threemf_bytes, write_stl
-from printapp.mesh import (
-    SolidCheck,
-    check_solid,
-    combine_solids,
-    winding_verdict,
-)
+from printapp.mesh import combine_solids, winding_verdict
 from printapp.outputs import OutputFolder
 from printapp.progress import StageTimer
 from printapp.relief import (
@@ -44,6 +39,7 @@ from printapp.relief import (
     fits_printer_size,
     slice_tile,
 )
+from printapp.solid import SolidCheck, check_solid
 from render.microfacet import SlopeRoughness, slope_roughness
 from render.mitsuba_adapter import StudioLight
 from slicing import Slices, slice_mesh, write_sl1

@@ -16,12 +16,12 @@ from printapp.design import Design, MeshBase, TileBase
 from printapp.errors import DesignError
 from printapp.fields import is_tile_field, surface_lic_values
 from printapp.mesh import (
-    SolidCheck,
     displace_along_normals,
     load_closed_mesh,
     refine_to_edge_length,
     slab_from_heightfield,
 )
+from printapp.solid import SolidCheck
 from printapp.texture import (
     FrameSummary,
     evaluate_texture_grid,

@@ -58,9 +58,9 @@ def _lic() -> None:
 
 def _design(design_dict: dict, brdf: bool) -> None:
     from printapp.design import design_from_dict
-    from printapp.mesh import check_solid
     from printapp.relief import appearance_field, build_relief
     from printapp.rendering import predict_for_design
+    from printapp.solid import check_solid
 
     design = design_from_dict(design_dict, "warm-up")
     relief = build_relief(design)

@@ -9,7 +9,6 @@ from noise.heightfield import HeightField
 from printapp.errors import DesignError
 from printapp.mesh import (
     bisect_long_edges,
-    check_solid,
     crease_weights,
     displace_along_normals,
     folded_triangles,
@@ -17,6 +16,7 @@ from printapp.mesh import (
     refine_to_edge_length,
     slab_from_heightfield,
 )
+from printapp.solid import check_solid
 
 DATA = __import__("pathlib").Path(__file__).parent.parent / "printapp" / "samples" / "meshes"
 
@@ -276,7 +276,7 @@ def test_repair_closes_every_part_and_drops_none():
 
 
 def test_enclosed_volume_is_the_closed_forms_and_trimesh_s():
-    from printapp.mesh import enclosed_volume_mm3
+    from printapp.solid import enclosed_volume_mm3
 
     box = trimesh.creation.box(extents=[2.0, 3.0, 5.0])
     assert enclosed_volume_mm3(box.vertices, box.faces) == pytest.approx(30.0, rel=1e-12)
@@ -317,7 +317,7 @@ def _meshes_to_count():
 
 @pytest.mark.parametrize("name", list(_meshes_to_count()))
 def test_edge_topology_counts_as_trimesh_does(name):
-    from printapp.mesh import edge_topology
+    from printapp.solid import edge_topology
 
     vertices, faces = _meshes_to_count()[name]
     ours = edge_topology(faces, len(vertices))
@@ -329,7 +329,7 @@ def test_edge_topology_counts_as_trimesh_does(name):
 
 
 def test_edge_topology_of_the_usual_cases():
-    from printapp.mesh import edge_topology
+    from printapp.solid import edge_topology
 
     meshes = _meshes_to_count()
     torus = edge_topology(meshes["torus"][1], len(meshes["torus"][0]))

@@ -23,7 +23,7 @@ def _digits(value: int) -> int:
     return count
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)  # (on the background thread: the main one goes on meanwhile)
 def _elements(triples, head, seps, tail):
     """``head a seps[0] b seps[1] c tail`` for each row ``(a, b, c)`` of ``triples``, as uint8."""
     fixed = head.size + seps.shape[1] * 2 + tail.size

@@ -67,7 +67,7 @@ class EdgeTopology:
     """Which vertices a face uses, ``(n_vertices,)`` bool."""
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)  # (on the background thread: the main one goes on meanwhile)
 def _edge_topology(faces, n_vertices):
     """One pass of an open-addressing hash table over the faces' edges, keyed by their vertex pair."""
     n_edges = 3 * faces.shape[0]

@@ -226,7 +226,7 @@ def _smith_lambda_one(ggx: bool, wx: float, wy: float, wz: float, au: float, av:
     return 0.5 * (math.erf(a) - 1.0) + math.exp(-a * a) / (2.0 * a * math.sqrt(math.pi))
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)  # (on the background thread: the main one goes on meanwhile)
 def _lobe_row_means(ggx, au, av, azimuth, ior, wis, wi_of_row, dirs, out) -> None:
     """``out[r]``: the mean of :func:`_lobe` from ``wis[wi_of_row[r]]`` over the directions ``dirs[r]``.
 
@@ -296,7 +296,7 @@ def lobe_row_means(
     return out
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, nogil=True)
 def _lobe_sampled_sums(ggx, au, av, azimuth, ior, wis, sx0, sy0, theta_range, out) -> None:
     """Sum each facet sample's weight into its outgoing bin, per incident direction (see below)."""
     n_in, n_t, n_p = out.shape

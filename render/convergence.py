@@ -329,6 +329,27 @@ def allocate_samples(
     -------
     (n,) int array: the samples per half each pixel should have, at least ``have``.
     """
+    return _allocate(unit_variance, have, measured, goal, rate, step, cap, lanes, _kernel_trials)
+
+
+Trials = Callable[..., tuple[Callable[[float], tuple[np.ndarray, int]], Callable[[float], bool]]]
+"""Makes the bisection's two trials from ``(unit_variance, weight, have, ceiling, measured, goal,
+rate, step)``: the counts at a multiplier (and the samples they add), and whether they reach the goal."""
+
+
+def _allocate(
+    unit_variance: np.ndarray,
+    have: np.ndarray,
+    measured: np.ndarray,
+    goal: float,
+    rate: float,
+    step: int,
+    cap: int,
+    lanes: int | None,
+    trials: Trials,
+) -> np.ndarray:
+    """:func:`allocate_samples` with its trials made by ``trials`` (the plain numpy ones are
+    ``printapp.bench.reference.allocate_plain``'s)."""
     have = np.asarray(have, dtype=np.int64)
     if have.size == 0:
         return have
@@ -337,28 +358,10 @@ def allocate_samples(
     most = leap if lanes is None else min(lanes, leap)  # samples this round may add
     unit_variance = np.asarray(unit_variance, dtype=np.float64)
     weight = unit_variance ** (1.0 / (1.0 + 2.0 * rate))
-    # The bisections' 120 trials through kernels: the counts, then each measured pixel's
-    # predicted variance from a table of N^(-2 rate) over the multiples of ``step`` (the numbers
-    # numpy's power gives), summed by np.mean: the counts of the plain numpy version
-    # (printapp.bench.reference.allocate_plain), bit for bit, in a tenth of its 0.75 s a call on
-    # 170k pixels, spent between render rounds.
-    if not (np.all(have % step == 0) and np.all(ceiling % step == 0)):
-        raise ValueError(f"have, cap: expected multiples of step ({step}) samples")
-    picked = np.flatnonzero(measured)
-    unit_measured = unit_variance[picked]
-    powers = (np.arange(int(ceiling.max()) // step + 1, dtype=np.int64) * step).astype(np.float64)
-    with np.errstate(divide="ignore"):  # (N = 0 never occurs: every pixel has samples)
-        powers **= -2.0 * rate
-    trial = np.empty(have.size, dtype=np.int64)
-    terms = np.empty(picked.size)
-
-    def reaches(lam: float) -> bool:
-        _counts(float(lam), weight, have, ceiling, int(step), trial)
-        _measured_terms(trial, picked, unit_measured, powers, int(step), terms)
-        return float(np.mean(terms)) <= goal
+    count, reaches = trials(unit_variance, weight, have, ceiling, measured, goal, rate, step)
 
     def fits(lam: float) -> bool:
-        return _counts(float(lam), weight, have, ceiling, int(step), trial) <= most
+        return count(lam)[1] <= most
 
     def bisect(good: Callable[[float], bool], lo: float, hi: float, smallest: bool) -> float:
         for _ in range(60):
@@ -373,8 +376,42 @@ def allocate_samples(
     lam = bisect(reaches, 0.0, top, smallest=True) if reaches(top) else top
     if not fits(lam):  # the lane budget binds before the goal: spend what fits
         lam = bisect(fits, 0.0, lam, smallest=False)
-    _counts(float(lam), weight, have, ceiling, int(step), trial)
-    return trial
+    return count(lam)[0].copy()
+
+
+def _kernel_trials(
+    unit_variance: np.ndarray,
+    weight: np.ndarray,
+    have: np.ndarray,
+    ceiling: np.ndarray,
+    measured: np.ndarray,
+    goal: float,
+    rate: float,
+    step: int,
+) -> tuple[Callable[[float], tuple[np.ndarray, int]], Callable[[float], bool]]:
+    """The trials through kernels: the counts, then each measured pixel's predicted variance from a
+    table of N^(-2 rate) over the multiples of ``step`` (the numbers numpy's power gives), summed
+    by np.mean: the plain numpy trials' answers, bit for bit, in a tenth of their 0.75 s a call
+    on 170k pixels, spent between render rounds."""
+    if not (np.all(have % step == 0) and np.all(ceiling % step == 0)):
+        raise ValueError(f"have, cap: expected multiples of step ({step}) samples")
+    picked = np.flatnonzero(measured)
+    unit_measured = unit_variance[picked]
+    powers = (np.arange(int(ceiling.max()) // step + 1, dtype=np.int64) * step).astype(np.float64)
+    with np.errstate(divide="ignore"):  # (N = 0 never occurs: every pixel has samples)
+        powers **= -2.0 * rate
+    trial = np.empty(have.size, dtype=np.int64)
+    terms = np.empty(picked.size)
+
+    def count(lam: float) -> tuple[np.ndarray, int]:
+        return trial, int(_counts(float(lam), weight, have, ceiling, int(step), trial))
+
+    def reaches(lam: float) -> bool:
+        count(lam)
+        _measured_terms(trial, picked, unit_measured, powers, int(step), terms)
+        return float(np.mean(terms)) <= goal
+
+    return count, reaches
 
 
 @njit(cache=True)

@@ -12,7 +12,8 @@
 # packages first on PYTHONPATH), its numba kernels compiled once into its own cache before
 # any timing. Each repeat runs REV, then the working tree, so that a load on the machine falls
 # on both alike (the machine is shared: compare the two medians, never a single time).
-# Outputs go to temporary folders (or files); prints each time and the two medians.
+# Outputs go to temporary folders (or files); prints each time (with a design's stages from its
+# manifest, where it writes one) and the two medians.
 set -euo pipefail
 rev=$1
 repeats=$2
@@ -37,7 +38,16 @@ for _ in $(seq "$repeats"); do
         (cd "$tree" && PYTHONPATH="$tree" "$python" -m printapp "${args[@]}" -o "$base/out-$which${OUT_EXT:-}" --quiet \
             >/dev/null 2>&1) || echo "($which exited $?)"
         seconds=$(awk -v a="$start" -v b="$(date +%s.%N)" 'BEGIN {printf "%.2f", b - a}')
-        echo "$which $seconds"
+        manifest="$base/out-$which${OUT_EXT:-}/manifest.json"
+        if [ -f "$manifest" ]; then
+            # A design's own stages, as its manifest records them (background ones included).
+            stages=$("$python" -c 'import json, sys
+stages = json.load(open(sys.argv[1]))["stages_s"]
+print(" ".join(f"{k}={v:.2f}" for k, v in stages.items()))' "$manifest")
+            echo "$which $seconds  $stages"
+        else
+            echo "$which $seconds"
+        fi
         if [ "$which" = rev ]; then times_rev+=("$seconds"); else times_now+=("$seconds"); fi
     done
 done

@@ -318,7 +318,7 @@ def run_design(
         fits = fits_printer_size(design, (float(size_mm[0]), float(size_mm[1]), float(size_mm[2])))
 
         def check_and_slice() -> tuple[SolidCheck, Slices | None, float | None]:
-            with timer.stage("check", "solid checks (trimesh, manifold3d)", background=True):
+            with timer.stage("check", "solid checks (edge count, manifold3d)", background=True):
                 solid = check_solid(mesh)
             if tile or not (solid.ok and fits):
                 return solid, None, None

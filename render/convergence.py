@@ -329,7 +329,7 @@ def allocate_samples(
     -------
     (n,) int array: the samples per half each pixel should have, at least ``have``.
     """
-    return _allocate(unit_variance, have, measured, goal, rate, step, cap, lanes, _kernel_trials)
+    return allocate_with_trials(unit_variance, have, measured, goal, rate, step, cap, lanes, _kernel_trials)
 
 
 Trials = Callable[..., tuple[Callable[[float], tuple[np.ndarray, int]], Callable[[float], bool]]]
@@ -337,7 +337,7 @@ Trials = Callable[..., tuple[Callable[[float], tuple[np.ndarray, int]], Callable
 rate, step)``: the counts at a multiplier (and the samples they add), and whether they reach the goal."""
 
 
-def _allocate(
+def allocate_with_trials(
     unit_variance: np.ndarray,
     have: np.ndarray,
     measured: np.ndarray,
@@ -348,8 +348,9 @@ def _allocate(
     lanes: int | None,
     trials: Trials,
 ) -> np.ndarray:
-    """:func:`allocate_samples` with its trials made by ``trials`` (the plain numpy ones are
-    ``printapp.bench.reference.allocate_plain``'s)."""
+    """:func:`allocate_samples` with the bisection's trials made by ``trials`` (:data:`Trials`): its
+    own are numba kernels, ``printapp.bench.reference.allocate_plain``'s the plain numpy ones
+    they are checked against."""
     have = np.asarray(have, dtype=np.int64)
     if have.size == 0:
         return have

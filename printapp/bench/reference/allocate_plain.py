@@ -1,12 +1,12 @@
 """The sample allocation of progressive rendering with its trials in plain numpy: the reference that
 ``render.convergence.allocate_samples``'s kernels are checked against (they were the production
 code before the bisection's trials went through numba; the counts must come out the same, bit for
-bit). The bisection itself is the production one (``render.convergence._allocate``).
+bit). The bisection itself is the production one (``render.convergence.allocate_with_trials``).
 """
 
 import numpy as np
 
-from render.convergence import _allocate
+from render.convergence import allocate_with_trials
 
 
 def _numpy_trials(unit_variance, weight, have, ceiling, measured, goal, rate, step):
@@ -26,4 +26,4 @@ def _numpy_trials(unit_variance, weight, have, ceiling, measured, goal, rate, st
 
 def allocate_plain(unit_variance, have, measured, goal, rate, *, step, cap, lanes=None):
     """:func:`render.convergence.allocate_samples` with the plain numpy trials: the same result."""
-    return _allocate(unit_variance, have, measured, goal, rate, step, cap, lanes, _numpy_trials)
+    return allocate_with_trials(unit_variance, have, measured, goal, rate, step, cap, lanes, _numpy_trials)

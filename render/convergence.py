@@ -292,6 +292,11 @@ VARIANCE_FLOOR = 0.05
 pixel would otherwise starve it of the samples that find it."""
 
 
+Trials = Callable[..., tuple[Callable[[float], tuple[np.ndarray, int]], Callable[[float], bool]]]
+"""Makes the bisection's two trials from ``(unit_variance, weight, have, ceiling, measured, goal,
+rate, step)``: the counts at a multiplier (and the samples they add), and whether they reach the goal."""
+
+
 def allocate_samples(
     unit_variance: np.ndarray,
     have: np.ndarray,
@@ -302,6 +307,7 @@ def allocate_samples(
     step: int,
     cap: int,
     lanes: int | None = None,
+    trials: Trials | None = None,
 ) -> np.ndarray:
     """Samples per pixel (per half) that reach a noise goal for the fewest samples in all.
 
@@ -324,33 +330,14 @@ def allocate_samples(
         The mean variance over ``measured`` to reach.
     rate : float
         Noise ~ spp^-rate (:func:`round_rate`).
+    trials : Trials, optional
+        How the bisection's trials are computed: by default numba kernels; the plain numpy
+        ones they are checked against are ``printapp.bench.reference.allocate_plain``'s.
 
     Returns
     -------
     (n,) int array: the samples per half each pixel should have, at least ``have``.
     """
-    return allocate_with_trials(unit_variance, have, measured, goal, rate, step, cap, lanes, _kernel_trials)
-
-
-Trials = Callable[..., tuple[Callable[[float], tuple[np.ndarray, int]], Callable[[float], bool]]]
-"""Makes the bisection's two trials from ``(unit_variance, weight, have, ceiling, measured, goal,
-rate, step)``: the counts at a multiplier (and the samples they add), and whether they reach the goal."""
-
-
-def allocate_with_trials(
-    unit_variance: np.ndarray,
-    have: np.ndarray,
-    measured: np.ndarray,
-    goal: float,
-    rate: float,
-    step: int,
-    cap: int,
-    lanes: int | None,
-    trials: Trials,
-) -> np.ndarray:
-    """:func:`allocate_samples` with the bisection's trials made by ``trials`` (:data:`Trials`): its
-    own are numba kernels, ``printapp.bench.reference.allocate_plain``'s the plain numpy ones
-    they are checked against."""
     have = np.asarray(have, dtype=np.int64)
     if have.size == 0:
         return have
@@ -359,7 +346,8 @@ def allocate_with_trials(
     most = leap if lanes is None else min(lanes, leap)  # samples this round may add
     unit_variance = np.asarray(unit_variance, dtype=np.float64)
     weight = unit_variance ** (1.0 / (1.0 + 2.0 * rate))
-    count, reaches = trials(unit_variance, weight, have, ceiling, measured, goal, rate, step)
+    make_trials = trials if trials is not None else _kernel_trials
+    count, reaches = make_trials(unit_variance, weight, have, ceiling, measured, goal, rate, step)
 
     def fits(lam: float) -> bool:
         return count(lam)[1] <= most

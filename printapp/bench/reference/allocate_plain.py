@@ -1,12 +1,12 @@
 """The sample allocation of progressive rendering with its trials in plain numpy: the reference that
 ``render.convergence.allocate_samples``'s kernels are checked against (they were the production
 code before the bisection's trials went through numba; the counts must come out the same, bit for
-bit). The bisection itself is the production one (``render.convergence.allocate_with_trials``).
+bit). The bisection itself is the production one (``render.convergence.allocate_samples``).
 """
 
 import numpy as np
 
-from render.convergence import allocate_with_trials
+from render.convergence import allocate_samples
 
 
 def _numpy_trials(unit_variance, weight, have, ceiling, measured, goal, rate, step):
@@ -26,4 +26,6 @@ def _numpy_trials(unit_variance, weight, have, ceiling, measured, goal, rate, st
 
 def allocate_plain(unit_variance, have, measured, goal, rate, *, step, cap, lanes=None):
     """:func:`render.convergence.allocate_samples` with the plain numpy trials: the same result."""
-    return allocate_with_trials(unit_variance, have, measured, goal, rate, step, cap, lanes, _numpy_trials)
+    return allocate_samples(
+        unit_variance, have, measured, goal, rate, step=step, cap=cap, lanes=lanes, trials=_numpy_trials
+    )

@@ -179,6 +179,11 @@ class ConvergenceSettings:
     time_cap_s: float = 60.0
     adaptive: bool = True
 
+    def __post_init__(self) -> None:
+        # Every count the loop asks for is a whole number of first passes (allocate_samples' step).
+        if self.first_spp < 1 or self.first_spp & (self.first_spp - 1):
+            raise ValueError(f"first_spp: expected a power of two, got {self.first_spp}")
+
 
 @dataclass
 class Converged:

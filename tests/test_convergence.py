@@ -353,6 +353,15 @@ def test_allocation_is_the_lagrange_optimum_within_its_caps():
     assert 0.99 * 7 * 8 * 500 < np.sum(far - have) <= 7 * 8 * 500 and far.max() > 8 * 8
 
 
+def test_first_passes_are_a_power_of_two():
+    from render.convergence import ConvergenceSettings
+
+    for bad in (0, 3, 6):
+        with pytest.raises(ValueError, match="first_spp"):
+            ConvergenceSettings(first_spp=bad)
+    assert ConvergenceSettings(first_spp=1).first_spp == 1
+
+
 @pytest.mark.parametrize("seed", range(6))
 def test_allocation_gives_the_plain_numpy_versions_counts(seed):
     """The kernels of the bisection's trials change its speed, never a count."""

@@ -56,7 +56,8 @@ cap), a machine a good deal faster or slower may take a different number of samp
 **A light-traced part** (``converge(caustics=...)``, :mod:`render.caustics`): paths the camera's
 samples leave out, estimated apart in each half and added before the noise is measured.
 
-The module is one piece (about 700 lines): the noise figure, the allocation and its rate, and
+The module is one piece (about 700 lines; the allocation's numba kernels stand apart, in
+``render._allocation_kernels``): the noise figure, the allocation and its rate, and
 the loop that uses them share one estimator (the halves' ``(a - b)^2 / 4``) and one model (a
 pixel's variance ``v N^-2a``). Split apart, the loop's predictions and the figure it checks
 them against could drift from each other, so they stay where one reading shows both.
@@ -70,7 +71,6 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
-from numba import njit
 
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
 """Rec. 709 luminance weights of linear RGB."""
@@ -351,8 +351,9 @@ def allocate_samples(
     most = leap if lanes is None else min(lanes, leap)  # samples this round may add
     unit_variance = np.asarray(unit_variance, dtype=np.float64)
     weight = unit_variance ** (1.0 / (1.0 + 2.0 * rate))
-    make_trials = trials if trials is not None else _kernel_trials
-    count, reaches = make_trials(unit_variance, weight, have, ceiling, measured, goal, rate, step)
+    if trials is None:
+        from render._allocation_kernels import kernel_trials as trials
+    count, reaches = trials(unit_variance, weight, have, ceiling, measured, goal, rate, step)
 
     def fits(lam: float) -> bool:
         return count(lam)[1] <= most
@@ -371,60 +372,6 @@ def allocate_samples(
     if not fits(lam):  # the lane budget binds before the goal: spend what fits
         lam = bisect(fits, 0.0, lam, smallest=False)
     return count(lam)[0].copy()
-
-
-def _kernel_trials(
-    unit_variance: np.ndarray,
-    weight: np.ndarray,
-    have: np.ndarray,
-    ceiling: np.ndarray,
-    measured: np.ndarray,
-    goal: float,
-    rate: float,
-    step: int,
-) -> tuple[Callable[[float], tuple[np.ndarray, int]], Callable[[float], bool]]:
-    """The trials through kernels: the counts, then each measured pixel's predicted variance from a
-    table of N^(-2 rate) over the multiples of ``step`` (the numbers numpy's power gives), summed
-    by np.mean: the plain numpy trials' answers, bit for bit, in a tenth of their 0.75 s a call
-    on 170k pixels, spent between render rounds."""
-    if not (np.all(have % step == 0) and np.all(ceiling % step == 0)):
-        raise ValueError(f"have, cap: expected multiples of step ({step}) samples")
-    picked = np.flatnonzero(measured)
-    unit_measured = unit_variance[picked]
-    powers = (np.arange(int(ceiling.max()) // step + 1, dtype=np.int64) * step).astype(np.float64)
-    with np.errstate(divide="ignore"):  # (N = 0 never occurs: every pixel has samples)
-        powers **= -2.0 * rate
-    trial = np.empty(have.size, dtype=np.int64)
-    terms = np.empty(picked.size)
-
-    def count(lam: float) -> tuple[np.ndarray, int]:
-        return trial, int(_counts(float(lam), weight, have, ceiling, int(step), trial))
-
-    def reaches(lam: float) -> bool:
-        count(lam)
-        _measured_terms(trial, picked, unit_measured, powers, int(step), terms)
-        return float(np.mean(terms)) <= goal
-
-    return count, reaches
-
-
-@njit(cache=True)
-def _counts(lam, weight, have, ceiling, step, out) -> int:
-    """``allocate_samples``'s counts at ``lam`` (as the plain numpy version computes them) into
-    ``out``; returns the samples they add."""
-    added = 0
-    for i in range(weight.size):
-        raw = min(max(lam * weight[i], float(have[i])), float(ceiling[i]))
-        whole = np.int64(math.ceil(raw))
-        out[i] = min(-(-whole // step) * step, ceiling[i])
-        added += out[i] - have[i]
-    return added
-
-
-@njit(cache=True)
-def _measured_terms(n, picked, unit_measured, powers, step, out) -> None:
-    for k in range(picked.size):
-        out[k] = unit_measured[k] * powers[n[picked[k]] // step]
 
 
 def _unit_variance(

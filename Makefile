@@ -1,19 +1,20 @@
 # printapp: `make demo` runs the default design end to end, `make test` runs the tests.
 # Both create .venv and install the project (with its dev extra) when needed, and try to
-# install Debian's libllvm19 so that Mitsuba's fast llvm_ad_rgb variant works.
+# install Debian's libllvm19 so that Mitsuba's fast llvm_ad_rgb variant works; `make test` also
+# tries Debian's chromium, prusa-slicer and admesh, which tests run beside printapp.
 
 PYTHON ?= python3
 VENV ?= .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.printapp-installed
 
-.PHONY: demo test test-fast lint format bench llvm chromium clean
+.PHONY: demo test test-fast lint format bench llvm chromium peers clean
 
 demo: $(STAMP) llvm
 	$(BIN)/printapp demo
 
 # Spread over the cores (pytest-xdist): most tests are single-threaded numpy and numba.
-test: $(STAMP) llvm chromium
+test: $(STAMP) llvm chromium peers
 	$(BIN)/python -m pytest -q -n auto --dist loadgroup
 
 # The edit-test loop: everything but the end-to-end and heavy tests (marked slow).
@@ -28,7 +29,7 @@ format: $(STAMP)
 	$(BIN)/ruff format .
 	$(BIN)/ruff check --fix .
 
-bench: $(STAMP) llvm
+bench: $(STAMP) llvm peers
 	@# pyfastnoisesimd (the noise peer) builds only without build isolation, after cython.
 	$(BIN)/python -c "import pyfastnoisesimd" 2>/dev/null || \
 		{ $(BIN)/python -m pip install --quiet cython setuptools wheel && \
@@ -40,6 +41,7 @@ bench: $(STAMP) llvm
 		echo "warning: embreex did not install; bench brdf runs without its Embree peer" >&2
 	$(BIN)/python -c "import miepython" 2>/dev/null || $(BIN)/python -m pip install --quiet miepython || \
 		echo "warning: miepython did not install; bench mie runs without its peer" >&2
+	@sh scripts/apt-install.sh "command -v blender" "bench mesh and commands run without their Blender peer" blender
 	$(BIN)/printapp bench -o bench-out
 
 llvm:
@@ -47,6 +49,10 @@ llvm:
 
 chromium:
 	@sh scripts/install-chromium.sh
+
+# PrusaSlicer and ADMesh, which tests run beside printapp (skipped where they cannot install).
+peers:
+	@sh scripts/install-peers.sh
 
 $(BIN)/python:
 	@sh scripts/make-venv.sh "$(PYTHON)" "$(VENV)"

@@ -10,14 +10,10 @@ have_llvm() {
     done
     return 1
 }
-have_llvm && exit 0
-if command -v apt-get >/dev/null 2>&1; then
-    if [ "$(id -u)" = 0 ]; then SUDO=""; elif command -v sudo >/dev/null 2>&1 && sudo -n true 2>/dev/null; then SUDO="sudo -n"; else SUDO=none; fi
-    if [ "$SUDO" != none ]; then
-        if $SUDO apt-get install -y -q libllvm19 >/dev/null 2>&1 || { $SUDO apt-get update -q >/dev/null 2>&1 && $SUDO apt-get install -y -q libllvm19 >/dev/null 2>&1; }; then
-            have_llvm && exit 0
-        fi
-    fi
+# `install-llvm.sh --check` only checks: the installer runs it before and after installing.
+if [ "${1:-}" = --check ]; then
+    have_llvm
+    exit $?
 fi
-echo "warning: could not install libllvm19 (needs apt-get and root); printapp will render on Mitsuba's slower scalar_rgb variant" >&2
-exit 0
+exec sh "$(dirname "$0")/apt-install.sh" "sh '$0' --check" \
+    "printapp will render on Mitsuba's slower scalar_rgb variant" libllvm19

@@ -238,7 +238,7 @@ def _deposit(local_bin, local_all, local_spec, n_local, acc_all, sq_all, acc_spe
     return n_local + 1
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, nogil=True)
 def _gonio(
     h,
     px,

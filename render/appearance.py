@@ -25,6 +25,7 @@ metrics say so, with a warning.
 from __future__ import annotations
 
 import math
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -256,35 +257,39 @@ def predict_appearance(
         # The same seed: the earlier run's rays are the first of the longer run's.
         table = trace(budget)
         lobe_errors = table_lobe_errors(table)
-    gloss_table, gloss, gloss_y = glossmeter(
-        heights_mm,
-        pitch_x_mm,
-        pitch_y_mm,
-        rays=rays,
-        ior=ior,
-        body_albedo=body_albedo,
-        seed=seed,
-        periodic=periodic,
-    )
+    # The glossmeter's rays (numba, releasing the GIL) run on a thread of their own while the
+    # compact model's numpy runs here: the model's steps use one core, the tracer both.
+    with ThreadPoolExecutor(1, thread_name_prefix="glossmeter") as pool:
+        gloss_run = pool.submit(
+            glossmeter,
+            heights_mm,
+            pitch_x_mm,
+            pitch_y_mm,
+            rays=rays,
+            ior=ior,
+            body_albedo=body_albedo,
+            seed=seed,
+            periodic=periodic,
+        )
+        normal = int(np.argmin(inc[:, 0]))
+        # The compact model: the facets the tracer saw (on a patch, those of the window it lit
+        # at the most normal incidence), the resin's index and the body's albedo.
+        window = (
+            None
+            if periodic
+            else lit_window(heights_mm, pitch_x_mm, pitch_y_mm, wi[normal : normal + 1], False)[0]
+        )
+        ndf = tabulate_ndf(heights_mm, pitch_x_mm, pitch_y_mm, periodic=periodic, window=window)
+        compact = tabulated_model(ndf, body_albedo, ior)
+        omega = table.projected_solid_angle
+        noise = table_noise(table.f, omega, table.stderr)
+        # The model's bins at the table's incident directions: its error here, and the report's maps.
+        model_f = model_bins(compact, wi, table.theta_o_edges, table.phi_o_edges)
+        error, used = table_error(
+            compact, wi, table.f, table.stderr, table.theta_o_edges, table.phi_o_edges, f_model=model_f
+        )
+        gloss_table, gloss, gloss_y = gloss_run.result()
     haze, haze_reason = haze_index(gloss)
-    normal = int(np.argmin(inc[:, 0]))
-    # The compact model: the facets the tracer saw (on a patch, those of the window it lit
-    # at the most normal incidence), the resin's index and the body's albedo.
-    window = (
-        None
-        if periodic
-        else lit_window(heights_mm, pitch_x_mm, pitch_y_mm, wi[normal : normal + 1], False)[0]
-    )
-    compact = tabulated_model(
-        tabulate_ndf(heights_mm, pitch_x_mm, pitch_y_mm, periodic=periodic, window=window), body_albedo, ior
-    )
-    omega = table.projected_solid_angle
-    noise = table_noise(table.f, omega, table.stderr)
-    # The model's bins at the table's incident directions: its error here, and the report's maps.
-    model_f = model_bins(compact, wi, table.theta_o_edges, table.phi_o_edges)
-    error, used = table_error(
-        compact, wi, table.f, table.stderr, table.theta_o_edges, table.phi_o_edges, f_model=model_f
-    )
     fit = FitResult(compact, error, used, noise)
     representation, warnings = model_or_table(fit)
     # The highlight's shape from the surface-reflection lobe at the most normal incidence.

@@ -26,7 +26,7 @@ STDLIB = set(sys.stdlib_module_names)
 
 MAY_IMPORT: dict[str, set[str]] = {
     "noise": {"numpy", "numba", "scipy"},
-    "slicing": {"numpy", "numba", "PIL", "isal", "noise"},
+    "slicing": {"numpy", "numba", "PIL", "isal", "zlib_ng", "noise"},
     "render": {"numpy", "numba", "scipy", "mitsuba", "drjit", "pyvista", "noise"},
 }
 """Third-party libraries and project rooms each lower room may import (the standard library always)."""

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from noise.heightfield import HeightField
+from slicing.deflate import _deflate_layer, deflate_bound
 from slicing.printers import PrinterProfile
 from slicing.raster import (
     _layer_box,
@@ -162,30 +163,111 @@ class Slices:
         """Exact area of each layer's cross-section (mm^2)."""
         return section_areas(self._layer, self._segments, self.n_layers)
 
+    def display_place(
+        self, height: int, width: int, row: int = 0, col: int = 0
+    ) -> tuple[int, int, bool, bool, bool]:
+        """Where a ``height`` x ``width`` block of the window at its (``row``, ``col``) lands on the display.
+
+        Returns ``(display_row, display_col, transposed, reverse_rows, reverse_cols)``: the
+        block's top-left on the display, and how the display shows it: transposed (on a
+        portrait display), then with its rows and its columns reversed as flagged.
+        """
+        p = self.profile
+        # In the top view T (H_px x W_px, row 0 at the largest Y) the block occupies
+        # rows [a0, a0 + height) and columns [b0, b0 + width): T shows the window upside down.
+        a0 = p.display_pixels_y - (self.row0 + row) - height
+        b0 = self.col0 + col
+        display_height, display_width = p.display_pixels_y, p.display_pixels_x
+        transposed = p.orientation == "portrait"
+        if transposed:
+            # rot90(T, 1): T[a, b] -> P[W - 1 - b, a]; P is the window transposed, both axes reversed.
+            a0, b0 = display_width - (b0 + width), a0
+            display_height, display_width = display_width, display_height
+            height, width = width, height
+        if p.mirror_x:
+            b0 = display_width - (b0 + width)
+        if p.mirror_y:
+            a0 = display_height - (a0 + height)
+        return a0, b0, transposed, not p.mirror_y, transposed != p.mirror_x
+
     def display_block(self, grey: np.ndarray, row: int = 0, col: int = 0) -> tuple[np.ndarray, int, int]:
         """Grey pixels (at ``row``, ``col`` of the window) as they appear on the display.
 
         Returns a view (not a copy) and its top-left (row, column) on the display.
         """
-        p = self.profile
-        # In the top view T (H_px x W_px, row 0 at the largest Y) the block occupies
-        # rows [a0, a0 + h) and columns [b0, b0 + w).
-        block = grey[::-1]
-        a0 = p.display_pixels_y - (self.row0 + row) - grey.shape[0]
-        b0 = self.col0 + col
-        height, width = p.display_pixels_y, p.display_pixels_x
-        if p.orientation == "portrait":
-            # rot90(T, 1): T[a, b] -> P[W - 1 - b, a]
-            block = np.rot90(block, 1)
-            a0, b0 = width - (b0 + grey.shape[1]), a0
-            height, width = width, height
-        if p.mirror_x:
-            block = block[:, ::-1]
-            b0 = width - (b0 + block.shape[1])
-        if p.mirror_y:
+        a0, b0, transposed, reverse_rows, reverse_cols = self.display_place(*grey.shape, row, col)
+        block = grey.T if transposed else grey
+        if reverse_rows:
             block = block[::-1]
-            a0 = height - (a0 + block.shape[0])
+        if reverse_cols:
+            block = block[:, ::-1]
         return block, a0, b0
+
+    def deflate_display_rows(self, k: int, scratch: dict | None = None) -> tuple[bytes, int, int, int]:
+        """Layer k's display rows that hold the part, as PNG scanlines deflated while they are rasterised.
+
+        Returns ``(stream, adler, display_row, n_rows)``: a raw deflate stream of the
+        scanlines (filter byte 0, then the display row's pixels) of display rows
+        ``[display_row, display_row + n_rows)``, ending on a full flush; and their adler-32
+        (started from 1). See :mod:`slicing.deflate`. The pixels are :meth:`layer_grey`'s as
+        :meth:`display_block` places them, except that a portrait display's window is
+        rasterised with x and y swapped (in the display's orientation), which can round
+        the other way a pixel whose coverage lies within rounding error of half a grey level.
+        Releases the GIL, so layers can be made on threads.
+        """
+        p = self.profile
+        ox, oy, r0, r1, c0, c1 = self._layer_window(k)
+        placed = self.display_place(r1 - r0, c1 - c0, r0, c0)
+        display_row, lead, transposed, reverse_rows, reverse_cols = placed
+        row_bytes = self.display_shape()[1] + 1
+        x0, y0 = ox + c0 * p.pitch_x_mm, oy + r0 * p.pitch_y_mm
+        if transposed:
+            seg = self._swapped_segments
+            window = (y0, x0, 1.0 / p.pitch_y_mm, 1.0 / p.pitch_x_mm, c1 - c0, r1 - r0)
+            whole_shape = (self.cols, self.rows + 2)
+        else:
+            seg = self._segments
+            window = (x0, y0, 1.0 / p.pitch_x_mm, 1.0 / p.pitch_y_mm, r1 - r0, c1 - c0)
+            whole_shape = (self.rows, self.cols + 2)
+        n_rows, n_cols = window[4], window[5]
+        if n_rows == 0 or n_cols == 0:
+            return b"", 1, 0, 0
+        scratch = {} if scratch is None else scratch
+        whole = scratch.get("acc_display")
+        if whole is None or whole.shape != whole_shape:
+            whole = scratch["acc_display"] = np.zeros(whole_shape)
+        bound = deflate_bound(n_rows, row_bytes)
+        out = scratch.get("deflate")
+        if out is None or out.size < bound:
+            out = scratch["deflate"] = np.empty(bound, dtype=np.uint8)
+            scratch["items"] = np.empty(n_rows * row_bytes, dtype=np.int32)
+        bounds = self._bounds
+        n_bytes, adler = _deflate_layer(
+            seg,
+            bounds[k],
+            bounds[k + 1],
+            *window[:4],
+            self.antialias,
+            whole,
+            n_rows,
+            n_cols,
+            reverse_rows,
+            reverse_cols,
+            lead,
+            row_bytes,
+            scratch["items"],
+            out,
+        )
+        return out[:n_bytes].tobytes(), adler, display_row, n_rows
+
+    @property
+    def _swapped_segments(self) -> np.ndarray:
+        """The sections' segments with x and y swapped (for rasterising in a portrait display's rows)."""
+        cached = getattr(self, "_swapped_cache", None)
+        if cached is None:
+            cached = np.ascontiguousarray(self._segments[:, [1, 0, 3, 2]])
+            self._swapped_cache = cached
+        return cached
 
     def display_shape(self) -> tuple[int, int]:
         p = self.profile

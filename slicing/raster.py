@@ -410,6 +410,15 @@ def _layer_box(
 
 
 @njit(cache=True, nogil=True)
+def _grey_level(winding: float, antialias: bool) -> int:
+    """A pixel's grey from its signed, pixel-averaged winding: round(255 coverage), or 255 from half on."""
+    coverage = min(abs(winding), 1.0)
+    if antialias:
+        return int(math.floor(coverage * 255.0 + 0.5))
+    return 255 if coverage >= 0.5 else 0
+
+
+@njit(cache=True, nogil=True)
 def _rasterise_layer_grey(
     seg, start, end, ox: float, oy: float, inv_pitch_x: float, inv_pitch_y: float, antialias: bool, whole, out
 ) -> None:
@@ -433,11 +442,7 @@ def _rasterise_layer_grey(
             if step != 0.0:
                 total += step
                 acc[r, c] = 0.0
-                coverage = min(abs(total), 1.0)
-                if antialias:
-                    grey = np.uint8(math.floor(coverage * 255.0 + 0.5))
-                else:
-                    grey = np.uint8(255 if coverage >= 0.5 else 0)
+                grey = np.uint8(_grey_level(total, antialias))
             out[r, c] = grey
         acc[r, cols] = 0.0
         acc[r, cols + 1] = 0.0

@@ -107,34 +107,47 @@ def _adler32_of_zeros(adler: int, length: int) -> int:
 def encode_display_png(block: np.ndarray, row0: int, col0: int, shape: tuple[int, int]) -> bytes:
     """The PNG of a display that is dark except for ``block`` at (row0, col0).
 
-    The zlib stream is spliced from parts that are each compressed on their own and end
-    on a full flush: cached chunks for the dark rows above and below, and the rows that
-    hold the part. The adler-32 of the dark rows is computed in closed form. Only the
-    part's rows are ever compressed, which is what makes layers cheap.
-
-    The part's rows go through zlib-ng's level 2. ISA-L's level 1, which they went through
-    before (2.5 times as fast), gave other bytes for the same rows now and then (the same
-    pixels): 1 or 2 of every ten ``slice`` runs of an 800-layer sphere wrote a layer that
-    differed from the other runs' in a few bytes, through its streaming and its one-shot
-    deflate alike, with the input's contents, alignment and trailing bytes held fixed.
+    The part's rows go through zlib-ng's level 2 (see :func:`_display_png` for the rest).
+    ISA-L's level 1, which they went through before (2.5 times as fast), gave other bytes
+    for the same rows now and then (the same pixels): 1 or 2 of every ten ``slice`` runs
+    of an 800-layer sphere wrote a layer that differed from the other runs' in a few
+    bytes, through its streaming and its one-shot deflate alike, with the input's
+    contents, alignment and trailing bytes held fixed.
     """
     from zlib_ng import zlib_ng
 
-    rows, cols = shape
-    row_bytes = cols + 1
     height, width = block.shape
-    pieces = [b"\x78\x01"]
-    adler = 1
-    if row0 > 0:
-        pieces.append(_zero_rows(row0, row_bytes))
-        adler = _adler32_of_zeros(adler, row0 * row_bytes)
+    part, adler = b"", 1
     if height > 0:
         # Compressed and summed through the buffer protocol: no copy into bytes.
-        data = np.zeros((height, row_bytes), dtype=np.uint8)
+        data = np.zeros((height, shape[1] + 1), dtype=np.uint8)
         data[:, 1 + col0 : 1 + col0 + width] = block
         compressor = zlib_ng.compressobj(2, zlib_ng.DEFLATED, -15)
-        pieces += [compressor.compress(data), compressor.flush(zlib_ng.Z_FULL_FLUSH)]
-        adler = zlib_ng.adler32(data, adler)
+        part = compressor.compress(data) + compressor.flush(zlib_ng.Z_FULL_FLUSH)
+        adler = zlib_ng.adler32(data)
+    return _display_png(shape, row0, height, part, adler)
+
+
+def _display_png(shape: tuple[int, int], row0: int, height: int, part: bytes, part_adler: int) -> bytes:
+    """The PNG of a display that is dark except for ``height`` rows from ``row0``.
+
+    ``part`` is the raw deflate of those rows' scanlines, ending on a full flush, and
+    ``part_adler`` their adler-32 started from 1. The zlib stream is spliced from parts
+    that each end on a full flush: cached chunks for the dark rows above and below, and
+    the part. The adler-32 of the dark rows is in closed form. Only the part's rows are
+    ever compressed, which is what makes layers cheap.
+    """
+    rows, cols = shape
+    row_bytes = cols + 1
+    pieces = [b"\x78\x01"]
+    a, b = part_adler & 0xFFFF, part_adler >> 16
+    if row0 > 0:
+        pieces.append(_zero_rows(row0, row_bytes))
+        # Zeros first leave s1 at 1 and s2 at their count; the part then adds as from (1, 0).
+        b = (b + row0 * row_bytes) % 65521
+    if height > 0:
+        pieces.append(part)
+    adler = (b << 16) | a
     tail = rows - row0 - height
     if tail > 0:
         pieces.append(_zero_rows(tail, row_bytes))
@@ -166,11 +179,17 @@ def encoded_layers(slices: Slices, workers: int = 2) -> Iterator[tuple[int, byte
     """
     local = threading.local()
     shape = slices.display_shape()
+    # Layers whose pixels are the geometric slice's are deflated as they are rasterised;
+    # a subclass that lights its pixels otherwise (exposure from heights) goes through its image.
+    straight = type(slices).layer_grey is Slices.layer_grey
 
     def make(k: int) -> bytes:
         scratch = getattr(local, "scratch", None)
         if scratch is None:
             scratch = local.scratch = {}
+        if straight:
+            part, adler, row0, height = slices.deflate_display_rows(k, scratch)
+            return _display_png(shape, row0, height, part, adler)
         block, r0, c0 = slices.display_block(*slices.layer_grey(k, scratch))
         return encode_display_png(block, r0, c0, shape)
 

@@ -279,6 +279,7 @@ def test_layer_kernels_compile_once_wherever_a_layer_falls():
     """A layer's window cut in Python was typed C-contiguous when it spanned the whole width and
     not otherwise, so a part that filled its window on some layer compiled the kernels again
     (a second or two on the user's first run, past `printapp warmup`)."""
+    from slicing.deflate import _deflate_layer
     from slicing.raster import _max_winding, _rasterise_layer_grey
 
     # A cone: its bottom layers fill the window, its top ones a small part of it.
@@ -288,8 +289,10 @@ def test_layer_kernels_compile_once_wherever_a_layer_falls():
     assert slices.max_winding() == pytest.approx(1.0)
     widths = {slices.layer_grey(k)[0].shape[1] for k in range(slices.n_layers)}
     assert max(widths) == slices.cols and min(widths) < slices.cols // 2
+    write_sl1(io.BytesIO(), slices, "cone")
     assert len(_max_winding.signatures) == 1
     assert len(_rasterise_layer_grey.signatures) == 1
+    assert len(_deflate_layer.signatures) == 1
 
 
 def test_the_plane_search_is_numpys_searchsorted():

@@ -28,9 +28,9 @@ def _grid_value(table, theta_max, x, y, z):
 
 
 @njit(cache=True, inline="always")
-def _grid_at(table, theta_max, theta, phi):
-    """Bilinear lookup of a (n_t, n_p) direction table at polar angle theta and azimuth phi in [0, 2 pi)."""
-    n_t, n_p = table.shape
+def _grid_cell(n_t, n_p, theta_max, theta, phi):
+    """The cell of a (n_t, n_p) direction grid about (theta, phi): rows i0, i0 + 1, columns j0, j1 and
+    the bilinear fractions along each."""
     ft = min(theta / theta_max * (n_t - 1), n_t - 1.0)
     i0 = min(int(ft), n_t - 2)
     at = ft - i0
@@ -39,6 +39,14 @@ def _grid_at(table, theta_max, theta, phi):
     ap = fp - j0
     j0 = j0 % n_p
     j1 = (j0 + 1) % n_p
+    return i0, j0, j1, at, ap
+
+
+@njit(cache=True, inline="always")
+def _grid_at(table, theta_max, theta, phi):
+    """Bilinear lookup of a (n_t, n_p) direction table at polar angle theta and azimuth phi in [0, 2 pi)."""
+    n_t, n_p = table.shape
+    i0, j0, j1, at, ap = _grid_cell(n_t, n_p, theta_max, theta, phi)
     low = (1.0 - ap) * table[i0, j0] + ap * table[i0, j1]
     high = (1.0 - ap) * table[i0 + 1, j0] + ap * table[i0 + 1, j1]
     return (1.0 - at) * low + at * high
@@ -94,21 +102,25 @@ def _second_bounce(m, w, dirs, area, theta_max, eta, out):
 
 
 @njit(cache=True, parallel=True)
-def _energies(m, w, wis, area, bounce, factor, theta_max, bounce_theta_max, eta, out):
-    """Per incident direction: single-scattering albedo, its ``factor``-weighted form, and the second bounce.
+def _energies(m, w, wis, area, bounce, theta_max, bounce_theta_max, eta, n_t, n_p, out, weights):
+    """Per incident direction: single-scattering albedo, the second bounce, and the albedo's weights.
 
-    ``out[j] = (E_ss, integral f_ss(wi, wo) factor(wo) cos d omega_o, E_2)`` for the
-    single-scattering microfacet BRDF with height-correlated Smith masking and the
-    expected second bounce of the light it blocks (``bounce``, indexed by the blocked
-    ray's travel direction over the whole sphere).
+    ``out[j] = (E_ss, E_2)`` for the single-scattering microfacet BRDF with height-correlated
+    Smith masking and the expected second bounce of the light it blocks (``bounce``, indexed
+    by the blocked ray's travel direction over the whole sphere); ``weights[j]`` (over the
+    cells of an (n_t, n_p) direction table up to ``theta_max``, flattened) is such that
+    ``weights[j] @ factor.ravel()`` is ``integral f_ss(wi, wo) factor(wo) cos d omega_o`` for
+    any such table ``factor`` looked up bilinearly: one pass serves every factor the
+    multiple-scattering iteration tries.
     """
     for j in prange(wis.shape[0]):
         ix, iy, iz = wis[j, 0], wis[j, 1], wis[j, 2]
         a_i = _grid_value(area, theta_max, ix, iy, iz)
         norm = iz + a_i  # cos(theta_i) (1 + Lambda_i): the visible projected area
         e_ss = 0.0
-        e_f = 0.0
         e_2 = 0.0
+        row = weights[j]
+        row[:] = 0.0
         if norm > 0.0:
             for k in range(m.shape[0]):
                 c = ix * m[k, 0] + iy * m[k, 1] + iz * m[k, 2]
@@ -127,13 +139,17 @@ def _energies(m, w, wis, area, bounce, factor, theta_max, bounce_theta_max, eta,
                         phi += 2.0 * math.pi
                     a_o = _grid_at(area, theta_max, theta, phi)
                     escape = _g2_over_g1(iz, a_i, oz, a_o)
-                    e_ss += vis * fr * escape
-                    e_f += vis * fr * escape * _grid_at(factor, theta_max, theta, phi)
+                    share = vis * fr * escape
+                    e_ss += share
+                    i0, j0, j1, at, ap = _grid_cell(n_t, n_p, theta_max, theta, phi)
+                    row[i0 * n_p + j0] += share * (1.0 - at) * (1.0 - ap)
+                    row[i0 * n_p + j1] += share * (1.0 - at) * ap
+                    row[(i0 + 1) * n_p + j0] += share * at * (1.0 - ap)
+                    row[(i0 + 1) * n_p + j1] += share * at * ap
                 if escape < 1.0:
                     e_2 += vis * fr * (1.0 - escape) * _grid_value(bounce, bounce_theta_max, ox, oy, oz)
         out[j, 0] = e_ss
-        out[j, 1] = e_f
-        out[j, 2] = e_2
+        out[j, 1] = e_2
 
 
 @njit(cache=True)

@@ -14,10 +14,16 @@ import pytest
 
 from render.brdf_fit import table_noise
 from render.brdf_model import smith_lambda
+from render.fresnel import fresnel_dielectric
 from render.gonio import direction_from_angles, estimate_brdf, lit_window, projected_solid_angle
 from render.tabulated_bins import model_bins, table_error
 from render.tabulated_ndf import (
+    MS_NODES,
+    MS_PHI,
+    MS_THETA,
+    direction_grid,
     evaluate,
+    grid_lookup,
     ndf_from_slopes,
     scattering_energies,
     tabulate_ndf,
@@ -147,6 +153,38 @@ def test_white_furnace_mirror_facets_return_what_they_do_not_send_into_the_surfa
     t = estimate_brdf(h, 1.0, 1.0, wi, rays=20_000, perfect_reflector=True, n_theta=9, n_phi=12)
     np.testing.assert_allclose(t.albedo, 1.0, rtol=1e-12)
     assert np.all(both[:3] > 0.99) and np.all(both > single)
+
+
+def test_the_factor_weights_spread_each_facet_over_its_cell():
+    """The multiple-scattering iteration weights a factor table by one matrix (render._energies):
+    each facet's share goes to the four nodes of its outgoing direction's cell, so a factor of
+    ones gives back the single-scattering albedo, and a factor of c gives c times it."""
+    ndf = tabulate_ndf(spectral_relief(128, 4.0, 2.5, 20.0, 0.3), 1.0, 1.0)
+    for ior in (None, 1.5):
+        e_ss, ones, _ = scattering_energies(ndf, ior)
+        np.testing.assert_allclose(ones, e_ss, rtol=1e-12, atol=1e-15)
+        _, scaled, _ = scattering_energies(ndf, ior, np.full(e_ss.shape, 0.37))
+        np.testing.assert_allclose(scaled, 0.37 * e_ss, rtol=1e-12, atol=1e-15)
+        assert e_ss.min() > 0.0
+        # Against the integral summed facet by facet in numpy, for a factor that varies.
+        theta, phi = np.meshgrid(np.linspace(0, 1, MS_THETA), np.arange(MS_PHI) / MS_PHI, indexing="ij")
+        factor = 1.0 + 0.5 * theta * np.cos(2 * math.pi * phi + 0.3)
+        _, weighted, _ = scattering_energies(ndf, ior, factor)
+        m, w = ndf.nodes(coarse=MS_NODES)
+        directions = direction_grid(MS_THETA, MS_PHI, math.pi / 2)
+        for j in (0, 37, 200, MS_THETA * MS_PHI - 5):
+            wi = directions[j]
+            a_i = grid_lookup(ndf.area, math.pi / 2, wi)
+            c = m @ wi
+            wo = 2.0 * c[:, None] * m - wi
+            keep = (c > 0) & (wo[:, 2] > 0)
+            c, wo, mz, wk = c[keep], wo[keep], m[keep, 2], w[keep]
+            fr = np.ones_like(c) if ior is None else fresnel_dielectric(np.minimum(c, 1.0), ior)
+            a_o = grid_lookup(ndf.area, math.pi / 2, wo)
+            escape = (wi[2] + a_i) * wo[:, 2] / ((wi[2] + a_i) * wo[:, 2] + a_o * wi[2])
+            share = wk * c / mz / (wi[2] + a_i) * fr * escape
+            want = np.sum(share * grid_lookup(factor, math.pi / 2, wo))
+            assert weighted.ravel()[j] == pytest.approx(want, rel=1e-9)
 
 
 def test_pigmented_model_conserves_energy_and_is_reciprocal():

@@ -275,9 +275,8 @@ def _write_block(items, n_items: int, freq, out) -> int:
                 np.int64(lengths[symbol] + _LENGTH_EXTRA_BITS[take] + distance_bits),
             )
     _put(state, out, np.uint64(codes[_END_OF_BLOCK]), np.int64(lengths[_END_OF_BLOCK]))
-    _put(
-        state, out, np.uint64(0), np.int64(3)
-    )  # an empty stored block (BFINAL 0, BTYPE 00), padded to a byte: a full flush
+    # An empty stored block (BFINAL 0, BTYPE 00), padded to a byte: a full flush.
+    _put(state, out, np.uint64(0), np.int64(3))
     if state[_STATE_COUNT] > 0:
         _put(state, out, np.uint64(0), np.int64(8 - int(state[_STATE_COUNT])))
     _put(state, out, np.uint64(0xFFFF0000), np.int64(32))

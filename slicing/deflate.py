@@ -27,7 +27,8 @@ from slicing.raster import _add_segments, _grey_level
 _ADLER_MOD = 65521
 _END_OF_BLOCK = 256
 _MATCH = 256
-"""An item above this is a match of (item - 256) bytes at distance 1; below it, a literal byte."""
+"""An item above this is a match of (item - 256) bytes at distance 1; below it, a literal byte.
+Items fit int16 (at most 514): two bytes a pixel in the worst case, every pixel a literal."""
 _STATE_BITS, _STATE_COUNT, _STATE_POS = range(3)
 _CODE_LENGTH_ORDER = np.array([16, 17, 18, 0, 8, 7, 9, 6, 10, 5, 11, 4, 12, 3, 13, 2, 14, 1, 15])
 
@@ -413,7 +414,7 @@ def deflate_runs(values: np.ndarray, lengths: np.ndarray) -> tuple[bytes, int]:
     if values.size and (values.min() < 0 or values.max() > 255 or lengths.min() < 0):
         raise ValueError("runs: expected byte values 0-255 and lengths >= 0")
     total = int(lengths.sum())
-    items = np.empty(max(total, 1), dtype=np.int32)
+    items = np.empty(max(total, 1), dtype=np.int16)
     out = np.empty(deflate_bound(1, total), dtype=np.uint8)
     n_bytes, adler = _deflate_runs(values.astype(np.int64), lengths.astype(np.int64), items, out)
     return out[:n_bytes].tobytes(), adler

@@ -240,7 +240,7 @@ class Slices:
         out = scratch.get("deflate")
         if out is None or out.size < bound:
             out = scratch["deflate"] = np.empty(bound, dtype=np.uint8)
-            scratch["items"] = np.empty(n_rows * row_bytes, dtype=np.int32)
+            scratch["items"] = np.empty(n_rows * row_bytes, dtype=np.int16)
         bounds = self._bounds
         n_bytes, adler = _deflate_layer(
             seg,

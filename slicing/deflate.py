@@ -22,7 +22,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from slicing.raster import _add_segments, _grey_level
+from slicing.raster import BLOCK_SHIFT, _add_segments, _grey_level
 
 _ADLER_MOD = 65521
 _END_OF_BLOCK = 256
@@ -303,6 +303,7 @@ def _deflate_layer(
     inv_pitch_y: float,
     antialias: bool,
     whole,
+    whole_marks,
     rows: int,
     cols: int,
     reverse_rows: bool,
@@ -317,12 +318,18 @@ def _deflate_layer(
     Each window row is one scanline of ``row_bytes`` bytes: the filter byte (0), ``lead``
     dark pixels, the row's pixels (right to left if ``reverse_cols``), dark pixels to the
     end; the scanlines go bottom row first if ``reverse_rows``. ``whole`` is the
-    accumulator (at least rows x cols + 2, zero on entry, left zero); ``items`` holds at
-    least rows x row_bytes items. Returns the bytes written to ``out`` and the adler-32 of
-    the scanlines. Pixels as :func:`slicing.raster._rasterise_layer_grey`.
+    accumulator (at least rows x cols + 2, zero on entry, left zero), ``whole_marks`` its
+    blocks' marks (at least rows x :func:`mark_blocks` (cols), zero on entry, left zero);
+    ``items`` holds at least rows x row_bytes items. Returns the bytes written to ``out``
+    and the adler-32 of the scanlines. Pixels as :func:`slicing.raster._rasterise_layer_grey`.
+
+    Only the blocks of a row that a segment wrote are read: elsewhere the accumulator is
+    zero and every pixel repeats the last grey, and reading it (8 bytes a pixel) was most
+    of the time.
     """
     acc = whole[:rows, : cols + 2]
-    _add_segments(seg, start, end, ox, oy, inv_pitch_x, inv_pitch_y, acc)
+    marks = whole_marks[:rows, : mark_blocks(cols)]
+    _add_segments(seg, start, end, ox, oy, inv_pitch_x, inv_pitch_y, acc, marks)
     freq = np.zeros(286, dtype=np.int64)
     run_values = np.empty(cols + 1, dtype=np.int64)
     run_lengths = np.empty(cols + 1, dtype=np.int64)
@@ -338,18 +345,29 @@ def _deflate_layer(
         grey = 0
         count = 0
         total = 0.0
-        for c in range(cols):
-            step = acc[r, c]
-            if step != 0.0:
-                total += step
-                acc[r, c] = 0.0
-                level = _grey_level(total, antialias)
-                if level != grey:
-                    if count > 0:
-                        run_values[n_runs], run_lengths[n_runs] = grey, count
-                        n_runs += 1
-                    grey, count = level, 0
-            count += 1
+        done = 0  # columns accounted for
+        for block in range(marks.shape[1]):
+            if marks[r, block] == 0:
+                continue
+            marks[r, block] = 0
+            first = block << BLOCK_SHIFT
+            if first >= cols:
+                continue
+            count += first - done  # the unmarked stretch repeats the last grey
+            done = min(first + (1 << BLOCK_SHIFT), cols)
+            for c in range(first, done):
+                step = acc[r, c]
+                if step != 0.0:
+                    total += step
+                    acc[r, c] = 0.0
+                    level = _grey_level(total, antialias)
+                    if level != grey:
+                        if count > 0:
+                            run_values[n_runs], run_lengths[n_runs] = grey, count
+                            n_runs += 1
+                        grey, count = level, 0
+                count += 1
+        count += cols - done
         run_values[n_runs], run_lengths[n_runs] = grey, count
         n_runs += 1
         acc[r, cols] = 0.0
@@ -376,6 +394,12 @@ def _deflate_layer(
         n_items = _push_run(items, n_items, freq, value, length)
         adler_a, adler_b = _adler_run(adler_a, adler_b, value, length)
     return _write_block(items, n_items, freq, out), (adler_b << 16) | adler_a
+
+
+@njit(cache=True, nogil=True)
+def mark_blocks(cols: int) -> int:
+    """Blocks of marks a row of ``cols`` pixels needs (its accumulator is two cells wider)."""
+    return ((cols + 1) >> BLOCK_SHIFT) + 1
 
 
 def deflate_bound(rows: int, row_bytes: int) -> int:

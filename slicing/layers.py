@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from noise.heightfield import HeightField
-from slicing.deflate import _deflate_layer, deflate_bound
+from slicing.deflate import _deflate_layer, deflate_bound, mark_blocks
 from slicing.printers import PrinterProfile
 from slicing.raster import (
     _layer_box,
@@ -236,6 +236,7 @@ class Slices:
         whole = scratch.get("acc_display")
         if whole is None or whole.shape != whole_shape:
             whole = scratch["acc_display"] = np.zeros(whole_shape)
+            scratch["marks_display"] = np.zeros((whole_shape[0], mark_blocks(whole_shape[1])), dtype=np.uint8)
         bound = deflate_bound(n_rows, row_bytes)
         out = scratch.get("deflate")
         if out is None or out.size < bound:
@@ -249,6 +250,7 @@ class Slices:
             *window[:4],
             self.antialias,
             whole,
+            scratch["marks_display"],
             n_rows,
             n_cols,
             reverse_rows,

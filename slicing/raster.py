@@ -292,12 +292,18 @@ def section_segments(
     return layer[order], seg[order]
 
 
+BLOCK_SHIFT = 6
+"""Cells per block of :func:`_accumulate_line`'s marks: 2 ** 6 = 64."""
+
+
 @njit(cache=True, nogil=True)
-def _accumulate_line(acc, x0: float, y0: float, x1: float, y1: float) -> None:
+def _accumulate_line(acc, x0: float, y0: float, x1: float, y1: float, marks) -> None:
     """Add the signed area a directed segment sweeps to the cells it crosses (font-rs style).
 
     ``acc`` is (rows, cols + 2); coordinates are in pixels, with pixel (r, c) covering
-    [c, c + 1) x [r, r + 1). A segment going up (increasing row) adds +area.
+    [c, c + 1) x [r, r + 1). A segment going up (increasing row) adds +area. Unless
+    ``marks`` is empty, ``marks[r, c >> BLOCK_SHIFT]`` is set for every cell written, so
+    that a scan may skip the blocks of a row that nothing touched.
     """
     if y0 == y1:
         return
@@ -307,6 +313,7 @@ def _accumulate_line(acc, x0: float, y0: float, x1: float, y1: float) -> None:
         x0, y0, x1, y1 = x1, y1, x0, y0
     rows = acc.shape[0]
     cols = acc.shape[1] - 2
+    marking = marks.shape[0] > 0
     dxdy = (x1 - x0) / (y1 - y0)
     x = x0
     if y0 < 0.0:
@@ -328,6 +335,9 @@ def _accumulate_line(acc, x0: float, y0: float, x1: float, y1: float) -> None:
         x0i = int(math.floor(xa_c))
         x0f = xa_c - x0i
         x1i = int(math.ceil(xb_c))
+        if marking:
+            for block in range(x0i >> BLOCK_SHIFT, (max(x1i, x0i + 1) >> BLOCK_SHIFT) + 1):
+                marks[row, block] = 1
         if x1i <= x0i + 1:
             xmf = 0.5 * (xa_c + xb_c) - x0i
             acc[row, x0i] += d - d * xmf
@@ -354,8 +364,11 @@ def _accumulate_line(acc, x0: float, y0: float, x1: float, y1: float) -> None:
 
 
 @njit(cache=True, nogil=True)
-def _add_segments(seg, start, end, ox: float, oy: float, inv_pitch_x: float, inv_pitch_y: float, acc) -> None:
-    """Accumulate segments start..end-1, mapped from mm to the pixels of a window at (ox, oy)."""
+def _add_segments(
+    seg, start, end, ox: float, oy: float, inv_pitch_x: float, inv_pitch_y: float, acc, marks
+) -> None:
+    """Accumulate segments start..end-1, mapped from mm to the pixels of a window at (ox, oy);
+    ``marks`` as :func:`_accumulate_line` (empty: none kept)."""
     for s in range(start, end):
         _accumulate_line(
             acc,
@@ -363,7 +376,13 @@ def _add_segments(seg, start, end, ox: float, oy: float, inv_pitch_x: float, inv
             (seg[s, 1] - oy) * inv_pitch_y,
             (seg[s, 2] - ox) * inv_pitch_x,
             (seg[s, 3] - oy) * inv_pitch_y,
+            marks,
         )
+
+
+@njit(cache=True, nogil=True)
+def _no_marks():
+    return np.zeros((0, 0), dtype=np.uint8)
 
 
 @njit(cache=True, nogil=True)
@@ -371,7 +390,7 @@ def _accumulate_layer(
     seg, start, end, ox: float, oy: float, inv_pitch_x: float, inv_pitch_y: float, acc
 ) -> None:
     acc[:, :] = 0.0
-    _add_segments(seg, start, end, ox, oy, inv_pitch_x, inv_pitch_y, acc)
+    _add_segments(seg, start, end, ox, oy, inv_pitch_x, inv_pitch_y, acc, _no_marks())
 
 
 @njit(cache=True, nogil=True)
@@ -431,7 +450,7 @@ def _rasterise_layer_grey(
     """
     rows, cols = out.shape
     acc = whole[:rows, : cols + 2]
-    _add_segments(seg, start, end, ox, oy, inv_pitch_x, inv_pitch_y, acc)
+    _add_segments(seg, start, end, ox, oy, inv_pitch_x, inv_pitch_y, acc, _no_marks())
     for r in range(rows):
         total = 0.0
         grey = np.uint8(0)
@@ -460,7 +479,7 @@ def _max_winding(
     every point inside it: more than one means the surface passes through itself there.
     """
     acc = whole[:rows, : cols + 2]
-    _add_segments(seg, start, end, ox, oy, inv_pitch_x, inv_pitch_y, acc)
+    _add_segments(seg, start, end, ox, oy, inv_pitch_x, inv_pitch_y, acc, _no_marks())
     worst = 0.0
     for r in range(rows):
         total = 0.0

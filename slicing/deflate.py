@@ -22,7 +22,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from slicing.raster import BLOCK_SHIFT, _add_segments, _grey_level
+from slicing.raster import BLOCK_SHIFT, _add_segments, _grey_level, mark_blocks
 
 _ADLER_MOD = 65521
 _END_OF_BLOCK = 256
@@ -319,7 +319,7 @@ def _deflate_layer(
     dark pixels, the row's pixels (right to left if ``reverse_cols``), dark pixels to the
     end; the scanlines go bottom row first if ``reverse_rows``. ``whole`` is the
     accumulator (at least rows x cols + 2, zero on entry, left zero), ``whole_marks`` its
-    blocks' marks (at least rows x :func:`mark_blocks` (cols), zero on entry, left zero);
+    blocks' marks (at least rows x :func:`slicing.raster.mark_blocks` (cols), zero on entry, left zero);
     ``items`` holds at least rows x row_bytes items. Returns the bytes written to ``out``
     and the adler-32 of the scanlines. Pixels as :func:`slicing.raster._rasterise_layer_grey`.
 
@@ -394,12 +394,6 @@ def _deflate_layer(
         n_items = _push_run(items, n_items, freq, value, length)
         adler_a, adler_b = _adler_run(adler_a, adler_b, value, length)
     return _write_block(items, n_items, freq, out), (adler_b << 16) | adler_a
-
-
-@njit(cache=True, nogil=True)
-def mark_blocks(cols: int) -> int:
-    """Blocks of marks a row of ``cols`` pixels needs (its accumulator is two cells wider)."""
-    return ((cols + 1) >> BLOCK_SHIFT) + 1
 
 
 def deflate_bound(rows: int, row_bytes: int) -> int:

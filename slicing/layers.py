@@ -20,13 +20,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from noise.heightfield import HeightField
-from slicing.deflate import _deflate_layer, deflate_bound, mark_blocks
+from slicing.deflate import _deflate_layer, deflate_bound
 from slicing.printers import PrinterProfile
 from slicing.raster import (
     _layer_box,
     _max_winding,
     _rasterise_layer_grey,
     heightfield_segments,
+    mark_blocks,
     rasterise_sections,
     section_areas,
     section_segments,
@@ -138,6 +139,7 @@ class Slices:
         """
         p = self.profile
         acc = np.zeros((self.rows, self.cols + 2))
+        marks = np.zeros((self.rows, mark_blocks(self.cols)), dtype=np.uint8)
         bounds = self._bounds
         worst = 0.0
         for k in range(self.n_layers):
@@ -153,6 +155,7 @@ class Slices:
                     1.0 / p.pitch_x_mm,
                     1.0 / p.pitch_y_mm,
                     acc,
+                    marks,
                     r1 - r0,
                     c1 - c0,
                 ),

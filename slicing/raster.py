@@ -386,6 +386,12 @@ def _no_marks():
 
 
 @njit(cache=True, nogil=True)
+def mark_blocks(cols: int) -> int:
+    """Blocks of marks a row of ``cols`` pixels needs (its accumulator is two cells wider)."""
+    return ((cols + 1) >> BLOCK_SHIFT) + 1
+
+
+@njit(cache=True, nogil=True)
 def _accumulate_layer(
     seg, start, end, ox: float, oy: float, inv_pitch_x: float, inv_pitch_y: float, acc
 ) -> None:
@@ -469,28 +475,44 @@ def _rasterise_layer_grey(
 
 @njit(cache=True, nogil=True)
 def _max_winding(
-    seg, start, end, ox: float, oy: float, inv_pitch_x: float, inv_pitch_y: float, whole, rows: int, cols: int
+    seg,
+    start,
+    end,
+    ox: float,
+    oy: float,
+    inv_pitch_x: float,
+    inv_pitch_y: float,
+    whole,
+    whole_marks,
+    rows: int,
+    cols: int,
 ) -> float:
     """Largest |winding number| (averaged over a pixel) of a layer's section over the ``rows``
-    x ``cols`` corner of ``whole`` (the accumulator, two columns wider; left zero). The corner
-    is cut here for the reason :func:`_rasterise_layer_grey` gives.
+    x ``cols`` corner of ``whole`` (the accumulator, two columns wider; left zero), with
+    ``whole_marks`` its blocks' marks (:func:`_accumulate_line`; zero on entry, left zero).
+    The corners are cut here for the reason :func:`_rasterise_layer_grey` gives.
 
     A closed, consistently oriented solid that does not overlap itself winds once around
     every point inside it: more than one means the surface passes through itself there.
     """
     acc = whole[:rows, : cols + 2]
-    _add_segments(seg, start, end, ox, oy, inv_pitch_x, inv_pitch_y, acc, _no_marks())
+    marks = whole_marks[:rows, : mark_blocks(cols)]
+    _add_segments(seg, start, end, ox, oy, inv_pitch_x, inv_pitch_y, acc, marks)
     worst = 0.0
     for r in range(rows):
         total = 0.0
-        for c in range(cols):
-            step = acc[r, c]
-            # The winding changes only where a segment added something: elsewhere (most of
-            # the window) there is nothing to clear and no new extreme.
-            if step != 0.0:
-                total += step
-                acc[r, c] = 0.0
-                worst = max(worst, abs(total))
+        # The winding changes only where a segment added something: only the blocks it
+        # marked are read, and in them only the cells it wrote to are cleared and summed.
+        for block in range(marks.shape[1]):
+            if marks[r, block] == 0:
+                continue
+            marks[r, block] = 0
+            for c in range(block << BLOCK_SHIFT, min((block + 1) << BLOCK_SHIFT, cols)):
+                step = acc[r, c]
+                if step != 0.0:
+                    total += step
+                    acc[r, c] = 0.0
+                    worst = max(worst, abs(total))
         acc[r, cols] = 0.0
         acc[r, cols + 1] = 0.0
     return worst

@@ -3,7 +3,9 @@
 Each command parses its options, calls one application function of ``printapp``, and
 prints the result; :mod:`printapp.cli.app` holds the application, the consoles and the
 one error boundary. Heavy libraries are imported inside the commands that need them,
-so ``printapp --help`` starts fast.
+so ``printapp --help`` starts fast. The command modules keep their annotations as objects
+(no ``from __future__ import annotations``): typer reads the signature of every command on
+every run, and evaluating them from strings cost each command about 0.02 s.
 """
 
 # ruff: noqa: I001 (the import order is the order ``printapp --help`` lists the commands)

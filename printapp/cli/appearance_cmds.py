@@ -1,7 +1,5 @@
 """``printapp brdf`` and ``printapp render``: predicted appearance and path-traced previews."""
 
-from __future__ import annotations
-
 from enum import StrEnum
 from pathlib import Path
 from typing import Annotated

@@ -1,7 +1,5 @@
 """``printapp bench``: speed against accuracy, beside the peers."""
 
-from __future__ import annotations
-
 from pathlib import Path
 from typing import Annotated
 

@@ -1,7 +1,5 @@
 """``printapp demo`` and ``printapp design``: a design end to end."""
 
-from __future__ import annotations
-
 from pathlib import Path
 from typing import Annotated, Any
 

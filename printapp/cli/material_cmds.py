@@ -1,7 +1,5 @@
 """``printapp material``: a material's scattering properties from its particles (Lorenz-Mie)."""
 
-from __future__ import annotations
-
 import json
 from pathlib import Path
 from typing import Annotated, Any

@@ -1,7 +1,5 @@
 """``printapp heightmap``, ``emboss``, ``displace`` and ``preview``: height maps and meshes."""
 
-from __future__ import annotations
-
 from pathlib import Path
 from typing import Annotated
 

@@ -1,7 +1,5 @@
 """``printapp printers`` and ``printapp slice``: printer profiles and layers."""
 
-from __future__ import annotations
-
 from pathlib import Path
 from typing import Annotated
 

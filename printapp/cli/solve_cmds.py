@@ -1,8 +1,6 @@
 """``printapp solve`` (appearance targets to a printable relief; ``--reachable``: what the printer can
 reach) and ``printapp sweep`` (variants of a design on Dask)."""
 
-from __future__ import annotations
-
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path

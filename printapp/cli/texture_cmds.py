@@ -1,7 +1,5 @@
 """``printapp texture`` and ``printapp fit``: texture images, and noise fitted to photos."""
 
-from __future__ import annotations
-
 import math
 from enum import StrEnum
 from pathlib import Path

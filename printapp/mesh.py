@@ -12,6 +12,7 @@ from numba import njit, prange
 
 from noise.frames import angle_weighted_normals
 from noise.heightfield import HeightField
+from printapp.bisection import bisect_long_edges
 from printapp.errors import DesignError
 from printapp.slab import slab_arrays
 
@@ -99,102 +100,6 @@ _GROWTH_PER_HALVING = 4.3
 def _subdivide(mesh: trimesh.Trimesh, max_edge_mm: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Vertices, faces and each face's input face after :func:`bisect_long_edges` (at most 40 rounds)."""
     return bisect_long_edges(np.asarray(mesh.vertices), np.asarray(mesh.faces), max_edge_mm, max_rounds=40)
-
-
-def bisect_long_edges(
-    vertices: np.ndarray, faces: np.ndarray, max_edge: float, max_rounds: int = 40
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Bisect every edge longer than ``max_edge`` at one midpoint shared by both its faces, until none is.
-
-    The templates are trimesh's ``remesh.subdivide_to_size`` (one long edge: two triangles;
-    two: a corner and the quad cut along its shorter diagonal; three: the 1-to-4 split), so
-    a closed mesh stays closed; the same triangles come out, in the same order
-    (tests/test_mesh.py holds them to trimesh's). What differs is the work per round: only
-    the faces that have a long edge are looked at and only the long edges are made unique
-    (trimesh makes every edge of the mesh unique each round, the last one included, which
-    took most of a CAD part's refinement). Midpoints are numbered in the order of their
-    edges' (lower, higher) vertex pair.
-
-    Returns
-    -------
-    vertices (float64), faces (int64) and ``parent`` (int64, each face's input face).
-
-    Raises
-    ------
-    ValueError
-        If edges are still too long after ``max_rounds`` rounds.
-    """
-    verts = np.array(vertices, dtype=np.float64, copy=True)
-    tris = np.array(faces, dtype=np.int64, copy=True)
-    parent = np.arange(len(tris), dtype=np.int64)
-    # A face with no long edge never gets one (its edges stay as they are), so each round
-    # looks only at the faces the last one made; the finished ones keep trimesh's order.
-    done, done_parent = [], []
-    for round_ in range(max_rounds + 1):
-        corner = verts[tris]  # (m, 3, 3)
-        # Edge k runs from corner k to corner k + 1 (trimesh's v0v1, v1v2, v2v0).
-        long = np.sqrt(np.sum((corner - np.roll(corner, -1, axis=1)) ** 2, axis=2)) > max_edge
-        touched = np.flatnonzero(long.any(axis=1))
-        if touched.size == 0:
-            done.append(tris)
-            done_parent.append(parent)
-            break
-        if round_ == max_rounds:
-            raise ValueError(f"edges longer than {max_edge} remain after {max_rounds} rounds of bisection")
-        sub, sub_long = tris[touched], long[touched]
-        ends = np.stack([sub, np.roll(sub, -1, axis=1)], axis=2)[sub_long]  # (k, 2) long edges
-        low, high = ends.min(axis=1), ends.max(axis=1)
-        _, first, inverse = np.unique(low * len(verts) + high, return_index=True, return_inverse=True)
-        mid_ids = np.full(sub.shape, -1, dtype=np.int64)
-        mid_ids[sub_long] = len(verts) + inverse.reshape(-1)
-        pairs = np.stack([low[first], high[first]], axis=1)
-        verts = np.vstack((verts, verts[pairs].mean(axis=1)))
-        count = sub_long.sum(axis=1)
-        keep = np.ones(len(tris), dtype=bool)
-        keep[touched] = False
-        done.append(tris[keep])
-        done_parent.append(parent[keep])
-        pieces, parents = [], []
-        sub_parent = parent[touched]
-
-        one = count == 1
-        j = np.argmax(sub_long[one], axis=1)
-        r = np.arange(len(j))
-        f1, m1 = sub[one], mid_ids[one]
-        a, b, c = f1[r, j], f1[r, (j + 1) % 3], f1[r, (j + 2) % 3]
-        p = m1[r, j]
-        pieces.append(np.column_stack((a, p, c, p, b, c)).reshape((-1, 3)))
-        parents.append(np.repeat(sub_parent[one], 2))
-
-        two = count == 2
-        j = (np.argmin(sub_long[two], axis=1) + 1) % 3
-        r = np.arange(len(j))
-        f2, m2 = sub[two], mid_ids[two]
-        a, b, c = f2[r, j], f2[r, (j + 1) % 3], f2[r, (j + 2) % 3]
-        p, q = m2[r, j], m2[r, (j + 1) % 3]
-        use_aq = (np.sum((verts[a] - verts[q]) ** 2, axis=1) <= np.sum((verts[p] - verts[c]) ** 2, axis=1))[
-            :, None
-        ]
-        pieces.append(
-            np.vstack(
-                (
-                    np.column_stack((p, b, q)),
-                    np.where(use_aq, np.column_stack((a, p, q)), np.column_stack((a, p, c))),
-                    np.where(use_aq, np.column_stack((a, q, c)), np.column_stack((p, q, c))),
-                )
-            )
-        )
-        parents.append(np.tile(sub_parent[two], 3))
-
-        three = count == 3
-        v0, v1, v2 = sub[three].T
-        n0, n1, n2 = mid_ids[three].T
-        pieces.append(np.column_stack((v0, n0, n2, n0, v1, n1, n2, n1, v2, n0, n1, n2)).reshape((-1, 3)))
-        parents.append(np.repeat(sub_parent[three], 4))
-
-        tris = np.vstack(pieces).astype(np.int64)
-        parent = np.concatenate(parents)
-    return verts, np.vstack(done).astype(np.int64), np.concatenate(done_parent)
 
 
 @dataclass(frozen=True)

@@ -3,10 +3,11 @@
 The templates are trimesh's ``remesh.subdivide_to_size`` (one long edge: two triangles; two: a
 corner and the quad cut along its shorter diagonal; three: the 1-to-4 split), so a closed mesh
 stays closed, and the same triangles come out in the same order (tests/test_mesh.py holds them
-to trimesh's). Each round is one numba pass over the faces the round before made: trimesh, and
-this module's numpy version before it, made every round's arrays anew with ``np.roll``,
-``np.unique`` and fancy indexing (1.4 of the 2.4 s that refining ``brushed_part``'s CAD part
-took on a loaded machine).
+to trimesh's). Each round is two numba passes over the faces the round before made and one
+``np.unique`` of its long edges' keys; trimesh, and this module's numpy version before it, made
+every round's arrays anew with ``np.roll``, ``np.unique`` and fancy indexing (1.4 of the 2.4 s
+that refining ``brushed_part``'s CAD part took on a loaded machine). Its two kernels compile in
+about 5 s on a loaded machine (one kernel with numba's own ``argsort`` took 9 s).
 """
 
 from __future__ import annotations
@@ -53,7 +54,12 @@ def bisect_long_edges(
     # looks only at the faces the last one made; the finished ones keep trimesh's order.
     done, done_parent = [], []
     for round_ in range(max_rounds + 1):
-        mids, finished, finished_parent, tris, parent = _bisect_round(verts, tris, parent, float(max_edge))
+        long, count, keys = _long_edges(verts, tris, float(max_edge))
+        # Each long edge once per face that has it; midpoints numbered by its key's rank.
+        keys, rank = np.unique(keys, return_inverse=True)
+        mids, finished, finished_parent, tris, parent = _bisect_round(
+            verts, tris, parent, long, count, rank.reshape(-1), len(keys)
+        )
         done.append(finished)
         done_parent.append(finished_parent)
         if len(tris) == 0:
@@ -65,15 +71,9 @@ def bisect_long_edges(
 
 
 @njit(cache=True)
-def _bisect_round(verts, tris, parent, max_edge):
-    """One round: ``(midpoints, finished faces, their parents, new faces, their parents)``.
-
-    The finished faces are those with no edge longer than ``max_edge``, in their order. Every
-    long edge gets one midpoint, numbered ``len(verts) + k`` by the rank ``k`` of its key
-    ``low * len(verts) + high``. The new faces are trimesh's, block by block: the faces with one
-    long edge (two triangles each), those with two (first every face's corner triangle, then
-    every face's second, then every face's third), those with three (four each).
-    """
+def _long_edges(verts, tris, max_edge):
+    """Per face, which edges (corner k to k + 1) are longer than ``max_edge`` and how many; and the
+    long edges' keys ``low * len(verts) + high``, face by face, corner by corner."""
     n_verts = verts.shape[0]
     m = tris.shape[0]
     long = np.zeros((m, 3), dtype=np.bool_)
@@ -90,7 +90,6 @@ def _bisect_round(verts, tris, parent, max_edge):
                 long[f, k] = True
                 count[f] += 1
                 n_long += 1
-    # The long edges' keys, each edge once per face that has it; ranked by sorting.
     keys = np.empty(n_long, dtype=np.int64)
     i = 0
     for f in range(m):
@@ -100,14 +99,21 @@ def _bisect_round(verts, tris, parent, max_edge):
                 b = tris[f, (k + 1) % 3]
                 keys[i] = min(a, b) * n_verts + max(a, b)
                 i += 1
-    order = np.argsort(keys)
-    rank = np.empty(n_long, dtype=np.int64)
-    n_mid = 0
-    for s in range(n_long):
-        if s > 0 and keys[order[s]] != keys[order[s - 1]]:
-            n_mid += 1
-        rank[order[s]] = n_mid
-    n_mid = n_mid + 1 if n_long > 0 else 0
+    return long, count, keys
+
+
+@njit(cache=True)
+def _bisect_round(verts, tris, parent, long, count, rank, n_mid):
+    """One round: ``(midpoints, finished faces, their parents, new faces, their parents)``.
+
+    The finished faces are those with no long edge (:func:`_long_edges`), in their order. The
+    ``i``-th long edge gets the midpoint ``len(verts) + rank[i]``. The new faces are trimesh's,
+    block by block: the faces with one long edge (two triangles each), those with two (first
+    every face's corner triangle, then every face's second, then every face's third), those
+    with three (four each).
+    """
+    n_verts = verts.shape[0]
+    m = tris.shape[0]
     mids = np.empty((n_mid, 3), dtype=np.float64)
     mid_of = np.full((m, 3), -1, dtype=np.int64)
     i = 0

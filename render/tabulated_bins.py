@@ -15,7 +15,7 @@ import numpy as np
 from render._tabulated_kernels import _facet_bins
 from render.brdf_model import MicrofacetBRDF, bin_directions
 from render.brdf_model import model_bins as analytic_model_bins
-from render.tabulated_ndf import TabulatedMicrofacet, _body_term, _surface, spike_energy
+from render.tabulated_ndf import TabulatedMicrofacet, _body_term, _surface, spike_energy, surface_tables
 
 
 def model_bins(
@@ -76,9 +76,12 @@ def model_bins(
     rings = slice(0, direct_rings)
     dirs = bin_directions(theta_edges[: direct_rings + 1], phi_edges, sub) if direct_rings else None
     body_dirs = bin_directions(theta_edges, phi_edges, 2) if body else None  # smooth: 2 x 2 a bin
+    dirs_tables = surface_tables(model, dirs) if dirs is not None else None  # (the same for every wi)
     for k, w in enumerate(wis):
         if dirs is not None:
-            out[k, rings] = _surface(model, w[None, None, None, :], dirs, spike=False).mean(axis=-1)
+            out[k, rings] = _surface(
+                model, w[None, None, None, :], dirs, spike=False, wo_tables=dirs_tables
+            ).mean(axis=-1)
         if body_dirs is not None:
             out[k] += _body_term(model, w[None, None, None, :], body_dirs).mean(axis=-1)
         if spike[k] > 0.0:

@@ -456,10 +456,10 @@ def _pair_lookup(kernel: np.ndarray, wi: np.ndarray, wo: np.ndarray) -> np.ndarr
         weight = [(1 - at) * (1 - ap), (1 - at) * ap, at * (1 - ap), at * ap]
         return index, weight
 
-    wi, wo = np.broadcast_arrays(wi, wo)
+    # Each side's cells from its own directions, combined by broadcasting (as in _surface).
     ii, wwi = corners(wi)
     io, wwo = corners(wo)
-    out = np.zeros(wi.shape[:-1])
+    out = np.zeros(np.broadcast_shapes(wi.shape, wo.shape)[:-1])
     for a in range(4):
         for b in range(4):
             out += wwi[a] * wwo[b] * kernel[ii[a], io[b]]
@@ -471,13 +471,15 @@ def _body_term(model: TabulatedMicrofacet, wi: np.ndarray, wo: np.ndarray) -> np
     rho, n = model.body_albedo, model.ior
     if n is None or rho <= 0.0:
         return np.zeros(np.broadcast_shapes(np.shape(wi), np.shape(wo))[:-1])
-    wi, wo = np.broadcast_arrays(np.asarray(wi, dtype=np.float64), np.asarray(wo, dtype=np.float64))
-    cos_i, cos_o = wi[..., 2], wo[..., 2]
+    wi, wo = np.asarray(wi, dtype=np.float64), np.asarray(wo, dtype=np.float64)
     a_i = grid_lookup(model.ndf.area, math.pi / 2, wi)
     a_o = grid_lookup(model.ndf.area, math.pi / 2, wo)
+    kernel = _pair_lookup(model.body_kernel, wi, wo)
+    wi, wo = np.broadcast_arrays(wi, wo)
+    cos_i, cos_o = wi[..., 2], wo[..., 2]
     factor = rho / (math.pi * n * n * (1.0 - rho * diffuse_fresnel_reflectance(1.0 / n)))
     with np.errstate(divide="ignore", invalid="ignore"):
-        value = factor * _pair_lookup(model.body_kernel, wi, wo) / (cos_i * cos_o + a_i * cos_o + a_o * cos_i)
+        value = factor * kernel / (cos_i * cos_o + a_i * cos_o + a_o * cos_i)
     return np.where((cos_i > 0.0) & (cos_o > 0.0), value, 0.0)
 
 
@@ -501,10 +503,28 @@ def _fresnel(model: TabulatedMicrofacet, cos: np.ndarray) -> np.ndarray:
     return np.ones_like(cos) if model.ior is None else fresnel_dielectric(cos, model.ior)
 
 
-def _surface(model: TabulatedMicrofacet, wi: np.ndarray, wo: np.ndarray, *, spike: bool) -> np.ndarray:
-    """The surface term (1/sr) without (or with, as a GGX lobe of ``spike_alpha``) the mirror spike."""
+def _surface(
+    model: TabulatedMicrofacet,
+    wi: np.ndarray,
+    wo: np.ndarray,
+    *,
+    spike: bool,
+    wo_tables: tuple[np.ndarray, np.ndarray] | None = None,
+) -> np.ndarray:
+    """The surface term (1/sr) without (or with, as a GGX lobe of ``spike_alpha``) the mirror spike.
+
+    ``wo_tables``: :func:`surface_tables` of ``wo``, for a caller that evaluates the same
+    outgoing directions for many incident ones.
+    """
     ndf = model.ndf
-    wi, wo = np.broadcast_arrays(np.asarray(wi, dtype=np.float64), np.asarray(wo, dtype=np.float64))
+    wi, wo = np.asarray(wi, dtype=np.float64), np.asarray(wo, dtype=np.float64)
+    # The tables are looked up at each side's own directions and the values broadcast: the
+    # same numbers as looking up the broadcast arrays, where an incident direction is usually
+    # one against thousands of outgoing ones (model_bins: half its lookups' arccos and arctan2).
+    a_i, k_i = surface_tables(model, wi)
+    a_o, k_o = surface_tables(model, wo) if wo_tables is None else wo_tables
+    k = k_i * k_o
+    wi, wo = np.broadcast_arrays(wi, wo)
     cos_i, cos_o = wi[..., 2], wo[..., 2]
     hv = wi + wo
     hv = hv / np.maximum(np.linalg.norm(hv, axis=-1, keepdims=True), 1e-300)
@@ -513,14 +533,16 @@ def _surface(model: TabulatedMicrofacet, wi: np.ndarray, wo: np.ndarray, *, spik
         a2 = model.spike_alpha**2
         q = (hv[..., 0] ** 2 + hv[..., 1] ** 2) / a2 + hv[..., 2] ** 2
         d = d + ndf.spike_weight / (math.pi * a2 * q * q)
-    a_i = grid_lookup(ndf.area, math.pi / 2, wi)
-    a_o = grid_lookup(ndf.area, math.pi / 2, wo)
     with np.errstate(divide="ignore", invalid="ignore"):
         # G2 / (cos_i cos_o) = 1 / (cos_i cos_o + A_i cos_o + A_o cos_i), finite at grazing.
         g2_cc = 1.0 / (cos_i * cos_o + a_i * cos_o + a_o * cos_i)
         f = _fresnel(model, np.sum(wi * hv, axis=-1)) * d * g2_cc / 4.0
-    k = grid_lookup(model.ms_factor, math.pi / 2, wi) * grid_lookup(model.ms_factor, math.pi / 2, wo)
     return np.where((cos_i > 0.0) & (cos_o > 0.0) & (hv[..., 2] > 0.0), f * k, 0.0)
+
+
+def surface_tables(model: TabulatedMicrofacet, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The masking table ``Lambda cos`` and the multiple-scattering factor ``k`` at unit directions ``w``."""
+    return grid_lookup(model.ndf.area, math.pi / 2, w), grid_lookup(model.ms_factor, math.pi / 2, w)
 
 
 def evaluate(

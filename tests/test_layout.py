@@ -218,6 +218,11 @@ def test_importing_the_rooms_does_not_pull_in_heavy_libraries():
     assert out.strip() == "[]"
 
 
+def _fresh_python(code: str) -> subprocess.CompletedProcess[str]:
+    """``code`` run by a fresh interpreter in the checkout: what a user's first import sees."""
+    return subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120)
+
+
 def test_light_modules_load_without_numba_or_scipy():
     """What `printapp emboss` and the design schema import stays light (issue #20): the packages
     resolve their re-exported kernels on first use (noise/lazy.py), and a name that is also a
@@ -230,9 +235,7 @@ def test_light_modules_load_without_numba_or_scipy():
         "import noise.veins, noise\n"
         "assert callable(noise.veins) and callable(noise.cellular) and 'numba' in sys.modules\n"
     )
-    result = subprocess.run(
-        [sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120
-    )
+    result = _fresh_python(code)
     assert result.returncode == 0, result.stderr[-2000:]
 
 
@@ -259,7 +262,5 @@ def test_the_command_line_starts_light():
         "s.slice_model_file = stop\n"
         "app(['slice', 'model.stl', '-o', 'model.sl1', '-q'], standalone_mode=False)\n"
     )
-    result = subprocess.run(
-        [sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120
-    )
+    result = _fresh_python(code)
     assert result.returncode == 1 and result.stderr.strip().endswith("[]"), result.stderr[-2000:]

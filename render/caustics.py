@@ -176,11 +176,14 @@ def _splats(
     sensor = scene.sensors()[0]
     ds, importance = sensor.sample_direction(si2, mi.Point2f(0.5, 0.5), ok)
     ok &= (ds.pdf > 0) & (dr.max(importance) > 0)
+    x, y = mi.Int32(dr.floor(ds.uv.x)), mi.Int32(dr.floor(ds.uv.y))
+    # The visibility ray only where the body can send light to a pixel: towards the camera above
+    # the surface (the coat reflects only), and into the frame.
+    ok &= (x >= 0) & (x < width) & (y >= 0) & (y < height) & (mi.Frame3f.cos_theta(si2.to_local(ds.d)) > 0)
     ok &= ~scene.ray_test(si2.spawn_ray_to(ds.p), ok)
     body = coat.eval(mi.BSDFContext(mi.TransportMode.Importance), si2, si2.to_local(ds.d), ok)
     value = beta * body * importance
-    x, y = mi.Int32(dr.floor(ds.uv.x)), mi.Int32(dr.floor(ds.uv.y))
-    ok &= (x >= 0) & (x < width) & (y >= 0) & (y < height) & (dr.max(value) > 0)
+    ok &= dr.max(value) > 0
     pixel = dr.select(ok, y * width + x, -1)
     value = dr.select(ok, value, 0.0)
     dr.eval(pixel, value, index)

@@ -140,6 +140,47 @@ def test_the_camera_vertex_done_apart_is_mitsubas_path_whatever_the_first_mirror
         assert abs(rest.mean() + only.mean() - path.mean()) < 4 * se_parts
 
 
+def test_a_light_sample_below_the_coat_traces_no_shadow_ray_and_loses_nothing():
+    """``light_sample`` against Mitsuba's own ``sample_emitter_direction`` with its visibility test,
+    on the same samples at the grooves' visible points: the same light (weight times the coat's
+    value) on every lane, the same weight and density wherever the direction is above the
+    surface, and enough lanes below it (lamps behind a groove's wall, the sky's lower half) that
+    skipping their rays is exercised."""
+    import drjit as dr
+    import mitsuba as mi
+
+    from render.caustics import coat_of
+    from render.coated_path import light_sample
+
+    renderer, _, _ = _scene()
+    scene, coat = renderer.scene, coat_of(renderer.scene_dict)
+    n = WIDTH * HEIGHT * 4
+    index = dr.arange(mi.UInt32, n)
+    column, row = mi.Float(index % (2 * WIDTH)), mi.Float(index // (2 * WIDTH))
+    film = mi.Point2f((column + 0.5) / (2 * WIDTH), (row + 0.5) / (2 * HEIGHT))
+    ray, _ = scene.sensors()[0].sample_ray(0.0, 0.5, film, mi.Point2f(0.5, 0.5))
+    si = scene.ray_intersect(ray)
+    on = si.is_valid() & (si.bsdf() == mi.BSDFPtr(coat)) & (mi.Frame3f.cos_theta(si.wi) > 0)
+    sampler = mi.load_dict({"type": "independent"})
+    sampler.seed(11, n)
+    sample = sampler.next_2d()
+    theirs, their_weight = scene.sample_emitter_direction(si, sample, True, on)
+    ours, our_weight = light_sample(scene, si, sample, on)
+    f = coat.eval(mi.BSDFContext(), si, si.to_local(theirs.d), on)
+    light_theirs, light_ours = np.array(their_weight * f), np.array(our_weight * f)
+    above = np.array(mi.Frame3f.cos_theta(si.to_local(theirs.d)) > 0)
+    drawn = np.array(on & (scene.sample_emitter_direction(si, sample, False, on)[0].pdf > 0))
+    assert np.array_equal(np.array(ours.d), np.array(theirs.d))
+    assert np.array_equal(light_ours, light_theirs)
+    assert np.array_equal(np.array(our_weight)[:, above], np.array(their_weight)[:, above])
+    assert np.array_equal(np.array(ours.pdf)[above], np.array(theirs.pdf)[above])
+    assert np.all(np.array(our_weight)[:, ~above] == 0.0)
+    assert np.count_nonzero(drawn) > n // 10  # the grooves fill a fifth of the frame
+    below = np.count_nonzero(drawn & ~above) / np.count_nonzero(drawn)
+    assert 0.05 < below < 0.95, below  # (about 9 % here)
+    assert np.count_nonzero(light_theirs.max(axis=0) > 0) > n // 20  # and light is found above
+
+
 def test_the_light_tracer_is_deterministic_and_its_seeds_independent():
     renderer, frame, _ = _scene()
     one, guide = _light(renderer, frame, 50_000, 3, learn=True)

@@ -154,11 +154,12 @@ def _splats(
         ps = lamp.shape.sample_position(0.0, on_lamp, pick)
         p, normal = dr.select(pick, ps.p, p), dr.select(pick, ps.n, normal)
         pdf_area = dr.select(pick, ps.pdf, pdf_area)
-        radiance = dr.select(pick, mi.Color3f(*lamp.radiance), radiance)
+        radiance = dr.select(pick, mi.Color3f(*[dr.opaque(mi.Float, c) for c in lamp.radiance]), radiance)
     # A direction in the cone that holds the object's bounding sphere, from the guide's cell.
-    to_centre = mi.Point3f(*[float(x) for x in centre]) - p
+    # The design's numbers held in memory: as literals, every object compiled its own kernel.
+    to_centre = mi.Point3f(*[dr.opaque(mi.Float, float(x)) for x in centre]) - p
     distance = dr.norm(to_centre)
-    cos_max = dr.safe_sqrt(1.0 - dr.square(float(radius) / distance))
+    cos_max = dr.safe_sqrt(1.0 - dr.square(dr.opaque(mi.Float, float(radius)) / distance))
     local = mi.warp.square_to_uniform_cone(towards, cos_max)
     pdf_dir = pmf * (side * side) * mi.warp.square_to_uniform_cone_pdf(local, cos_max)
     d = mi.Frame3f(to_centre / distance).to_world(local)
@@ -170,7 +171,7 @@ def _splats(
     start = mi.Interaction3f(mi.Float(0.0), mi.Float(0.0), dr.zeros(mi.Color0f), p, normal)
     si1 = scene.ray_intersect(start.spawn_ray(d), leaves)
     ok = leaves & si1.is_valid() & (si1.bsdf() == coat_ptr) & (mi.Frame3f.cos_theta(si1.wi) > 0)
-    beta *= _fresnel(mi.Frame3f.cos_theta(si1.wi), float(coat.eta))
+    beta *= _fresnel(mi.Frame3f.cos_theta(si1.wi), coat.eta_held)
     si2 = scene.ray_intersect(si1.spawn_ray(si1.to_world(mi.reflect(si1.wi))), ok)
     ok &= si2.is_valid() & (si2.bsdf() == coat_ptr) & (mi.Frame3f.cos_theta(si2.wi) > 0)
     sensor = scene.sensors()[0]

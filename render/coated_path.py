@@ -162,7 +162,7 @@ class CoatedPath:
         self.coat = coat
         self.p_mirror = float(coat.p_mirror)
         self.p_first = float(first_mirror_probability)
-        self.eta = float(coat.eta)
+        self.eta = coat.eta_held  # (held in memory: see render.mitsuba_bsdfs)
         self.max_depth = int(max_depth)
         self.rr_depth = 5
 

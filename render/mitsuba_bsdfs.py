@@ -136,6 +136,11 @@ def _register_plugins() -> None:
 
     fresnel = fresnel_dr
 
+    def held(value: float) -> Any:
+        # A design's number held in memory, not written into the traced kernel as a literal:
+        # as literals, every new body colour or index compiled the preview's kernels anew.
+        return dr.opaque(mi.Float, value) if dr.is_jit_v(mi.Float) else value
+
     class CompactResin(mi.BSDF):
         """The fitted compact model: anisotropic microfacet lobe, optional sharp spike, Lambertian body."""
 
@@ -390,12 +395,14 @@ def _register_plugins() -> None:
         def __init__(self, props):
             super().__init__(props)
             self.eta = float(props.get("ior", 1.5))
+            self.eta_held = held(self.eta)
             body = props.get("body", mi.ScalarColor3f(0.5, 0.5, 0.5))
             f_int = float(props.get("f_dr_int", 0.6))
             self.p_mirror = float(props.get("mirror_probability", MIRROR_PROBABILITY))
             rho = [float(body[i]) for i in range(3)]
             # rho / (pi n^2 (1 - rho F_dr,int)) per channel: plastic's nonlinear body
-            self.body_factor = mi.Color3f(*[r / (math.pi * self.eta**2 * (1.0 - r * f_int)) for r in rho])
+            factors = [r / (math.pi * self.eta**2 * (1.0 - r * f_int)) for r in rho]
+            self.body_factor = mi.Color3f(*[held(f) for f in factors])
             self.m_components = [
                 mi.BSDFFlags.DeltaReflection | mi.BSDFFlags.FrontSide,
                 mi.BSDFFlags.DiffuseReflection | mi.BSDFFlags.FrontSide,
@@ -412,7 +419,7 @@ def _register_plugins() -> None:
         def _body(self, ctx, si, wo, active):
             cos_i, cos_o = mi.Frame3f.cos_theta(si.wi), mi.Frame3f.cos_theta(wo)
             ok = active & (cos_i > 0) & (cos_o > 0)
-            t = (1.0 - fresnel(cos_i, self.eta)) * (1.0 - fresnel(cos_o, self.eta)) * cos_o
+            t = (1.0 - fresnel(cos_i, self.eta_held)) * (1.0 - fresnel(cos_o, self.eta_held)) * cos_o
             value = dr.select(ok, self.body_factor * t, 0.0)
             p_body = 1.0 - self._p_mirror(ctx)
             pdf = dr.select(ok, p_body * mi.warp.square_to_cosine_hemisphere_pdf(wo), 0.0)
@@ -444,7 +451,7 @@ def _register_plugins() -> None:
             bs = lobe_or_body_sample(
                 wo, pick_mirror, mi.BSDFFlags.DeltaReflection, dr.select(pick_mirror, p, body_pdf)
             )
-            mirror_weight = mi.Spectrum(fresnel(cos_i, self.eta) / max(p, 1e-12))
+            mirror_weight = mi.Spectrum(fresnel(cos_i, self.eta_held) / max(p, 1e-12))
             weight = dr.select(pick_mirror, mirror_weight, body / dr.maximum(body_pdf, 1e-12))
             return bs, dr.select(active & (bs.pdf > 0), weight, 0.0)
 

@@ -181,6 +181,40 @@ def test_a_light_sample_below_the_coat_traces_no_shadow_ray_and_loses_nothing():
     assert np.count_nonzero(light_theirs.max(axis=0) > 0) > n // 20  # and light is found above
 
 
+def test_a_new_body_colour_or_index_traces_the_same_kernels():
+    """The coat's body colour and index, and the light tracer's sphere and lamp colours, are held in
+    memory, not written into the traced code: a design that changes only its resin renders with the
+    kernels already compiled (as literals, each new colour compiled the preview's kernels anew,
+    about two seconds here). Compared by the kernels' hashes in Dr.Jit's history."""
+    import drjit as dr
+
+    from render.caustics import coat_of
+    from render.coated_path import CoatedPath
+    from render.mitsuba_adapter import resin_scene_dict
+    from render.progressive import SampleRenderer
+
+    renderer, frame, _ = _scene()  # (the variant, or a skip)
+    vertices, faces = v_grooves(2.0)
+
+    def kernels(albedo, ior):
+        scene_dict, _ = resin_scene_dict(
+            vertices, faces, body_albedo=albedo, refractive_index=ior, width_px=WIDTH, height_px=HEIGHT
+        )
+        r = SampleRenderer(scene_dict, WIDTH, HEIGHT)
+        dr.kernel_history()  # (emptied)
+        r.render(4, 3, integrator=CoatedPath(coat_of(r.scene_dict), caustics="light"))
+        _light(r, frame, 20_000, 5)
+        return {k["hash"] for k in dr.kernel_history() if k["type"] == dr.KernelType.JIT}
+
+    dr.set_flag(dr.JitFlag.KernelHistory, True)
+    try:
+        first = kernels((0.25, 0.45, 0.75), 1.5)
+        assert first == kernels((0.7, 0.2, 0.1), 1.58)
+        assert len(first) >= 2  # the camera's paths and the light paths, at least
+    finally:
+        dr.set_flag(dr.JitFlag.KernelHistory, False)
+
+
 def test_the_light_tracer_is_deterministic_and_its_seeds_independent():
     renderer, frame, _ = _scene()
     one, guide = _light(renderer, frame, 50_000, 3, learn=True)

@@ -198,10 +198,7 @@ class Framing:
         fov_deg: float,
         distance_scale: float = 1.0,
     ) -> Framing:
-        # Reduced along rows of the transposed copy: down the columns of an (n, 3) array numpy
-        # runs a three-wide inner loop, ten times slower (0.1 s on a CAD part's 1.4 M vertices,
-        # paid again by every frame of a light sweep).
-        columns = np.ascontiguousarray(np.asarray(vertices_mm, dtype=np.float64).T)
+        columns = np.ascontiguousarray(vertices_mm.T)  # rows reduce ten times faster than (n, 3) columns
         lo, hi = columns.min(axis=1), columns.max(axis=1)
         radius = float(np.linalg.norm(hi - lo)) / 2.0
         half_fov = math.radians(fov_deg) / 2.0

@@ -181,36 +181,41 @@ def test_a_light_sample_below_the_coat_traces_no_shadow_ray_and_loses_nothing():
     assert np.count_nonzero(light_theirs.max(axis=0) > 0) > n // 20  # and light is found above
 
 
-def test_a_new_body_colour_or_index_traces_the_same_kernels():
-    """The coat's body colour and index, and the light tracer's sphere and lamp colours, are held in
-    memory, not written into the traced code: a design that changes only its resin renders with the
-    kernels already compiled (as literals, each new colour compiled the preview's kernels anew,
-    about two seconds here). Compared by the kernels' hashes in Dr.Jit's history."""
+def test_a_new_resin_or_object_traces_the_same_kernels():
+    """What a design sets (the coat's body colour and index, the object's size and so the camera's
+    and the lamps' places, the light tracer's sphere) is held in memory, not written into the
+    traced code: a new design renders with the kernels already compiled. As literals, a new
+    colour compiled the preview's kernels anew (seven, about two seconds here) and so did a new
+    object size (five). Compared by the kernels' hashes in Dr.Jit's history."""
     import drjit as dr
 
     from render.caustics import coat_of
     from render.coated_path import CoatedPath
-    from render.mitsuba_adapter import resin_scene_dict
+    from render.mitsuba_adapter import Framing, resin_scene_dict
     from render.progressive import SampleRenderer
 
-    renderer, frame, _ = _scene()  # (the variant, or a skip)
-    vertices, faces = v_grooves(2.0)
+    _scene()  # (the variant, or a skip)
 
-    def kernels(albedo, ior):
-        scene_dict, _ = resin_scene_dict(
+    def kernels(albedo, ior, depth_mm):
+        vertices, faces = v_grooves(depth_mm)
+        scene_dict, frame = resin_scene_dict(
             vertices, faces, body_albedo=albedo, refractive_index=ior, width_px=WIDTH, height_px=HEIGHT
         )
+        assert isinstance(frame, Framing)
         r = SampleRenderer(scene_dict, WIDTH, HEIGHT)
         dr.kernel_history()  # (emptied)
         r.render(4, 3, integrator=CoatedPath(coat_of(r.scene_dict), caustics="light"))
+        r.render(1, 3)  # the scene's own integrator (Mitsuba's path), as the light sweep renders
         _light(r, frame, 20_000, 5)
-        return {k["hash"] for k in dr.kernel_history() if k["type"] == dr.KernelType.JIT}
+        return frame.radius_mm, {k["hash"] for k in dr.kernel_history() if k["type"] == dr.KernelType.JIT}
 
     dr.set_flag(dr.JitFlag.KernelHistory, True)
     try:
-        first = kernels((0.25, 0.45, 0.75), 1.5)
-        assert first == kernels((0.7, 0.2, 0.1), 1.58)
-        assert len(first) >= 2  # the camera's paths and the light paths, at least
+        radius, first = kernels((0.25, 0.45, 0.75), 1.5, 2.0)
+        other_radius, other = kernels((0.7, 0.2, 0.1), 1.58, 3.0)
+        assert other_radius != radius  # (a different framing)
+        assert first == other
+        assert len(first) >= 3  # the camera's paths, Mitsuba's path and the light paths
     finally:
         dr.set_flag(dr.JitFlag.KernelHistory, False)
 

@@ -91,14 +91,14 @@ def noise_summary(preview: Preview) -> tuple[bool, str]:
     if c.converged:
         return True, (
             f"preview converged: raw noise {c.noise:.1%} of the object's mean luminance "
-            f"(at most {c.target:.0%}) after {how}{denoised}"
+            f"(at most {c.target * 100:g}%) after {how}{denoised}"
         )
     stop = {
         "time cap": f"the time cap ({c.time_cap_s:g} s)",
         "sample budget": f"the sample budget ({c.budget_spp} samples per pixel)",
     }.get(c.stopped, c.stopped)
     line = (
-        f"preview noise {c.noise:.1%} (raw) is above its threshold {c.target:.0%}: rendering stopped at "
+        f"preview noise {c.noise:.1%} (raw) is above its threshold {c.target * 100:g}%: rendering stopped at "
         f"{stop} after {how}{denoised}"
     )
     if c.timing_dependent:

@@ -232,6 +232,11 @@ LIGHT_SHARE = 0.15
 given; the camera's samples get the rest. On ``part_relief`` the cheapest split gave it about a
 tenth (its paths are some 75 times cheaper per unit of variance, and the camera's part is the
 larger); more is given because adaptive sampling makes the camera's part cheaper than uniform."""
+LIGHT_PATHS_PER_SAMPLE = 16
+"""The light-traced part's budget, per half: this many paths for each sample the camera may take
+(``max_spp`` over the object's pixels). The previews take about a quarter of a path per sample;
+without a budget a goal out of reach doubled the light paths round after round (a design asking
+0.1 % in 32 samples traced on for minutes, past its time cap of 2 s)."""
 
 
 def round_rate(before: tuple[np.ndarray, np.ndarray], after: tuple[np.ndarray, np.ndarray]) -> float:
@@ -518,7 +523,7 @@ def converge(
         if caustics is None or not goal > 0.0 or v <= LIGHT_SHARE * goal:
             return light["paths"]
         want = math.ceil(light["paths"] * v / (LIGHT_SHARE * goal))
-        return min(want, MAX_LEAP * light["paths"])
+        return min(want, MAX_LEAP * light["paths"], max(light_cap, light["paths"]))
 
     def total_noise() -> float:
         if caustics is None:
@@ -548,6 +553,7 @@ def converge(
 
     rounds = [(have[measured], pixel_variance())]
     cap = max(_pow2_floor(s.max_spp / 2), n)
+    light_cap = LIGHT_PATHS_PER_SAMPLE * cap * max(int(mask.sum()), 1)
     budget = cap  # mean samples per pixel, per half
     lanes_left: int | None = None
     limit = "sample budget"
@@ -615,15 +621,22 @@ def converge(
             and light_added == 0
             and caustics is not None
             and light_matters
-            and light["paths"] < 1 << 30
+            and 2 * light["paths"] <= light_cap
         ):
             # Each part's prediction meets its share but their measured sum does not (a few
             # hundred pixels measure the parts loosely): halve the light-traced part's variance,
             # which also leaves the camera's part more of the goal next round. (Not once it is a
             # hundredth of the goal: then it cannot be what keeps the sum above it.)
             light_added = light["paths"]
+        # The light-traced part keeps to the time cap too (the camera's samples keep to it by
+        # their budget, fixed from the rounds' timing).
+        over_time = light_added > 0 and clock() - start >= s.time_cap_s
+        if over_time:
+            light_added, truncated = 0, True
         if added == 0 and light_added == 0:
-            if lanes_left is not None and lanes_left >= active.size * s.first_spp:
+            if over_time:
+                stopped = "time cap"
+            elif lanes_left is not None and lanes_left >= active.size * s.first_spp:
                 stopped = "sample budget"  # every pixel at max_spp before the clock ran out
             break
         began = clock()

@@ -517,3 +517,31 @@ def test_a_small_object_converges_without_piling_up_light_paths():
     result = converge(camera, mask, seed=3, settings=settings, caustics=faint)
     assert result.converged and result.noise <= 0.02
     assert max(calls) <= 64 * calls[0]
+
+
+def test_a_goal_out_of_reach_keeps_the_light_paths_to_the_budget_and_the_clock():
+    """A goal no budget reaches (0.1 % in at most 32 samples a pixel): the camera stops at its cap,
+    and the light-traced part stops at its own budget (``LIGHT_PATHS_PER_SAMPLE`` paths for each
+    sample the camera may take, per half). Before, its paths doubled round after round (a design
+    asking 0.1 % with a 2 s time cap ran for minutes); with a clock past the time cap it stops at
+    once, and says so."""
+    from render.convergence import LIGHT_PATHS_PER_SAMPLE
+
+    camera = Synthetic()
+    camera.clean = camera.clean - Caustics(camera.mask).true
+    light = Caustics(camera.mask)
+    settings = ConvergenceSettings(target=0.001, first_spp=2, max_spp=32, time_cap_s=1e9)
+    result = converge(camera, camera.mask, seed=5, settings=settings, caustics=light)
+    assert not result.converged and result.stopped == "sample budget"
+    cap_per_half = LIGHT_PATHS_PER_SAMPLE * 16 * int(camera.mask.sum())
+    assert max(n for n, _ in light.calls) <= cap_per_half
+    assert result.light_paths <= 2 * (cap_per_half + light.calls[0][0])
+    # The clock: past the time cap after the first rounds, no light path is added.
+    ticks = iter(range(1000))
+    late = ConvergenceSettings(target=0.001, first_spp=2, max_spp=1 << 14, time_cap_s=1.5)
+    light = Caustics(camera.mask)
+    result = converge(
+        camera, camera.mask, seed=5, settings=late, caustics=light, clock=lambda: float(next(ticks))
+    )
+    assert not result.converged and result.stopped == "time cap" and result.timing_dependent
+    assert len(light.calls) <= 4  # (two halves of the first round's, and one more round at most)

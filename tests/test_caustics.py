@@ -140,7 +140,7 @@ def test_the_camera_vertex_done_apart_is_mitsubas_path_whatever_the_first_mirror
         assert abs(rest.mean() + only.mean() - path.mean()) < 4 * se_parts
 
 
-def test_a_light_sample_below_the_coat_traces_no_shadow_ray_and_loses_nothing():
+def test_a_light_sample_below_the_coat_loses_nothing_against_mitsubas_own():
     """``light_sample`` against Mitsuba's own ``sample_emitter_direction`` with its visibility test,
     on the same samples at the grooves' visible points: the same light (weight times the coat's
     value) on every lane, the same weight and density wherever the direction is above the

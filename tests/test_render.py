@@ -129,3 +129,57 @@ def test_one_traced_kernel_serves_every_lamp_position():
         seen.append(_traced_kernels(renderer))
     assert seen[0], "the render launched no kernel"
     assert seen[1] == seen[0] and seen[2] == seen[0], seen
+
+
+@pytest.mark.slow
+def test_the_warm_up_compiles_what_a_new_designs_preview_needs():
+    """``printapp warmup`` renders a small tile's preview and light sweep at the default size; a
+    design with another resin, size and relief then renders its preview and sweep with the same
+    programs (a design's numbers are held in memory, not compiled in), all but reductions of a
+    dozen operations. Before, each new design compiled five to seven programs (about 2 s here)."""
+    import drjit as dr
+
+    from printapp.design import design_from_dict
+    from printapp.relief import appearance_field, build_relief
+    from printapp.rendering import light_sweep, predict_for_design, render_preview
+    from printapp.report import sweep_settings
+    from printapp.warmup import STEPS
+    from render.mitsuba_adapter import choose_variant
+
+    if choose_variant().variant.startswith("scalar"):
+        pytest.skip("the scalar variant traces no kernels")
+
+    def programs(run) -> set[str]:
+        dr.set_flag(dr.JitFlag.KernelHistory, True)
+        try:
+            dr.kernel_history()  # (emptied)
+            run()
+            dr.sync_thread()
+            history = dr.kernel_history()
+        finally:
+            dr.set_flag(dr.JitFlag.KernelHistory, False)
+        return {k["hash"] for k in history if k["type"] == dr.KernelType.JIT and k["operation_count"] > 20}
+
+    warm = programs(next(step for name, _, step in STEPS if name == "render"))
+
+    def design_run() -> None:
+        design = design_from_dict(
+            {
+                "base": {"width_mm": 5.0, "depth_mm": 4.0},
+                "texture": {"kind": "fbm", "feature_size_mm": 1.5, "seed": 3},
+                "relief": {"amplitude_um": 120},
+                "material": {"body_albedo": [0.3, 0.6, 0.2], "refractive_index": 1.55},
+                "brdf": {"rays": 2000},
+                "render": {"spp": 8, "noise": 0.2},
+            },
+            "test",
+        )
+        relief = build_relief(design)
+        field, _ = appearance_field(design, relief)
+        predicted = predict_for_design(design, field, analytic=False)
+        render_preview(design, relief, relief.mesh, predicted, field)
+        light_sweep(design, relief, relief.mesh, predicted, field, **sweep_settings(design))
+
+    needed = programs(design_run)
+    assert len(needed) >= 4  # guides, the camera's paths, the light paths, the sweep's
+    assert needed <= warm, f"{len(needed - warm)} of {len(needed)} programs not compiled by the warm-up"

@@ -177,28 +177,33 @@ def _preview() -> None:
     here at the default preview size serves every coated design of that size. Its goal is out of
     reach and its time cap short, so the rounds over listed pixels run and then it stops.
     """
-    from printapp.design import design_from_dict
-    from printapp.relief import appearance_field, build_relief
-    from printapp.rendering import light_sweep, predict_for_design, render_preview
-    from printapp.report import sweep_settings
-
     render = {"spp": 8, "noise": 0.001, "max_spp": 32, "time_cap_s": 1.0}
     # A relief whose lamp caustics are light-traced apart, and a nearly flat one whose are not.
     for amplitude_um in (300.0, 5.0):
-        design = design_from_dict(
+        preview_and_sweep(
             {
                 "base": {"width_mm": 3.0, "depth_mm": 3.0},
                 "relief": {"amplitude_um": amplitude_um},
                 "brdf": {"rays": 2000},
                 "render": render,
-            },
-            "warm-up",
+            }
         )
-        relief = build_relief(design)
-        field, _ = appearance_field(design, relief)
-        predicted = predict_for_design(design, field, analytic=False)
-        render_preview(design, relief, relief.mesh, predicted, field)
-        light_sweep(design, relief, relief.mesh, predicted, field, **sweep_settings(design))
+
+
+def preview_and_sweep(design_dict: dict) -> None:
+    """Render a design's preview and light sweep as ``printapp design`` does (its relief and BRDF
+    first; nothing is written)."""
+    from printapp.design import design_from_dict
+    from printapp.relief import appearance_field, build_relief
+    from printapp.rendering import light_sweep, predict_for_design, render_preview
+    from printapp.report import sweep_settings
+
+    design = design_from_dict(design_dict, "warm-up")
+    relief = build_relief(design)
+    field, _ = appearance_field(design, relief)
+    predicted = predict_for_design(design, field, analytic=False)
+    render_preview(design, relief, relief.mesh, predicted, field)
+    light_sweep(design, relief, relief.mesh, predicted, field, **sweep_settings(design))
 
 
 def _caustic_split(vertices: np.ndarray, faces: np.ndarray) -> None:

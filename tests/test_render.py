@@ -139,11 +139,7 @@ def test_the_warm_up_compiles_what_a_new_designs_preview_needs():
     dozen operations. Before, each new design compiled five to seven programs (about 2 s here)."""
     import drjit as dr
 
-    from printapp.design import design_from_dict
-    from printapp.relief import appearance_field, build_relief
-    from printapp.rendering import light_sweep, predict_for_design, render_preview
-    from printapp.report import sweep_settings
-    from printapp.warmup import STEPS
+    from printapp.warmup import STEPS, preview_and_sweep
     from render.mitsuba_adapter import choose_variant
 
     if choose_variant().variant.startswith("scalar"):
@@ -163,7 +159,7 @@ def test_the_warm_up_compiles_what_a_new_designs_preview_needs():
     warm = programs(next(step for name, _, step in STEPS if name == "render"))
 
     def design_run() -> None:
-        design = design_from_dict(
+        preview_and_sweep(
             {
                 "base": {"width_mm": 5.0, "depth_mm": 4.0},
                 "texture": {"kind": "fbm", "feature_size_mm": 1.5, "seed": 3},
@@ -171,14 +167,8 @@ def test_the_warm_up_compiles_what_a_new_designs_preview_needs():
                 "material": {"body_albedo": [0.3, 0.6, 0.2], "refractive_index": 1.55},
                 "brdf": {"rays": 2000},
                 "render": {"spp": 8, "noise": 0.2},
-            },
-            "test",
+            }
         )
-        relief = build_relief(design)
-        field, _ = appearance_field(design, relief)
-        predicted = predict_for_design(design, field, analytic=False)
-        render_preview(design, relief, relief.mesh, predicted, field)
-        light_sweep(design, relief, relief.mesh, predicted, field, **sweep_settings(design))
 
     needed = programs(design_run)
     assert len(needed) >= 4  # guides, the camera's paths, the light paths, the sweep's

@@ -193,11 +193,16 @@ def _preview() -> None:
 def preview_and_sweep(design_dict: dict) -> None:
     """Render a design's preview and light sweep as ``printapp design`` does (its relief and BRDF
     first; nothing is written)."""
+    import gc
+
     from printapp.design import design_from_dict
     from printapp.relief import appearance_field, build_relief
     from printapp.rendering import light_sweep, predict_for_design, render_preview
     from printapp.report import sweep_settings
 
+    # Scenes that earlier renders left behind freed first: Mitsuba's own integrators call the
+    # BSDFs and emitters of every scene alive, and their programs differ with how many there are.
+    gc.collect()
     design = design_from_dict(design_dict, "warm-up")
     relief = build_relief(design)
     field, _ = appearance_field(design, relief)

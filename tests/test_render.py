@@ -131,45 +131,51 @@ def test_one_traced_kernel_serves_every_lamp_position():
     assert seen[1] == seen[0] and seen[2] == seen[0], seen
 
 
+_PROGRAMS = """
+import json, sys
+import drjit as dr
+from printapp.warmup import STEPS, preview_and_sweep
+from render.mitsuba_adapter import choose_variant
+
+choose_variant()
+dr.set_flag(dr.JitFlag.KernelHistory, True)
+if sys.argv[1] == "warm-up":
+    next(step for name, _, step in STEPS if name == "render")()
+else:
+    preview_and_sweep(json.loads(sys.argv[1]))
+dr.sync_thread()
+jit = [k for k in dr.kernel_history() if k["type"] == dr.KernelType.JIT and k["operation_count"] > 20]
+print(json.dumps(sorted({k["hash"] for k in jit})))
+"""
+
+
 @pytest.mark.slow
 def test_the_warm_up_compiles_what_a_new_designs_preview_needs():
     """``printapp warmup`` renders a small tile's preview and light sweep at the default size; a
     design with another resin, size and relief then renders its preview and sweep with the same
     programs (a design's numbers are held in memory, not compiled in), all but reductions of a
-    dozen operations. Before, each new design compiled five to seven programs (about 2 s here)."""
-    import drjit as dr
-
-    from printapp.warmup import STEPS, preview_and_sweep
+    dozen operations. Before, each new design compiled five to seven programs (about 2 s here).
+    Each side runs in a fresh process, as the two commands do: Mitsuba's own integrators call the
+    BSDFs of every scene alive, so a process that rendered other scenes traces other programs."""
     from render.mitsuba_adapter import choose_variant
 
     if choose_variant().variant.startswith("scalar"):
         pytest.skip("the scalar variant traces no kernels")
+    design = {
+        "base": {"width_mm": 5.0, "depth_mm": 4.0},
+        "texture": {"kind": "fbm", "feature_size_mm": 1.5, "seed": 3},
+        "relief": {"amplitude_um": 120},
+        "material": {"body_albedo": [0.3, 0.6, 0.2], "refractive_index": 1.55},
+        "brdf": {"rays": 2000},
+        "render": {"spp": 8, "noise": 0.2},
+    }
 
-    def programs(run) -> set[str]:
-        dr.set_flag(dr.JitFlag.KernelHistory, True)
-        try:
-            dr.kernel_history()  # (emptied)
-            run()
-            dr.sync_thread()
-            history = dr.kernel_history()
-        finally:
-            dr.set_flag(dr.JitFlag.KernelHistory, False)
-        return {k["hash"] for k in history if k["type"] == dr.KernelType.JIT and k["operation_count"] > 20}
-
-    warm = programs(next(step for name, _, step in STEPS if name == "render"))
-
-    def design_run() -> None:
-        preview_and_sweep(
-            {
-                "base": {"width_mm": 5.0, "depth_mm": 4.0},
-                "texture": {"kind": "fbm", "feature_size_mm": 1.5, "seed": 3},
-                "relief": {"amplitude_um": 120},
-                "material": {"body_albedo": [0.3, 0.6, 0.2], "refractive_index": 1.55},
-                "brdf": {"rays": 2000},
-                "render": {"spp": 8, "noise": 0.2},
-            }
+    def programs(which: str) -> set[str]:
+        out = subprocess.run(
+            [sys.executable, "-c", _PROGRAMS, which], capture_output=True, text=True, timeout=600, check=True
         )
+        return set(json.loads(out.stdout.strip().splitlines()[-1]))
 
-    needed = programs(design_run)
+    warm, needed = programs("warm-up"), programs(json.dumps(design))
     assert len(needed) >= 4  # guides, the camera's paths, the light paths, the sweep's
     assert needed <= warm, f"{len(needed - warm)} of {len(needed)} programs not compiled by the warm-up"

@@ -56,7 +56,7 @@ cap), a machine a good deal faster or slower may take a different number of samp
 **A light-traced part** (``converge(caustics=...)``, :mod:`render.caustics`): paths the camera's
 samples leave out, estimated apart in each half and added before the noise is measured.
 
-The module is one piece (about 700 lines; the allocation's numba kernels stand apart, in
+The module is one piece (about 730 lines; the allocation's numba kernels stand apart, in
 ``render._allocation_kernels``): the noise figure, the allocation and its rate, and
 the loop that uses them share one estimator (the halves' ``(a - b)^2 / 4``) and one model (a
 pixel's variance ``v N^-2a``). Split apart, the loop's predictions and the figure it checks
